@@ -1,0 +1,140 @@
+//! Rotations between frames, angle wrapping and attitude interpolation helpers.
+//!
+//! Convention (SPEC 3): attitude `R_b^n = Rz(heading) * Ry(pitch) * Rx(roll)` maps body vectors
+//! into North-East-Down; boresight `R_s^b = Rz(bz) * Ry(by) * Rx(bx)` maps scanner vectors into
+//! the body. `Rx`, `Ry`, `Rz` are active right-handed rotations about the axis (rad).
+
+use nalgebra::{Matrix3, Rotation3, UnitQuaternion, Vector3};
+use std::f64::consts::{PI, TAU};
+
+/// Active rotation about x by `a` (rad).
+#[inline]
+pub fn rot_x(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(1.0, 0.0, 0.0, 0.0, c, -s, 0.0, s, c)
+}
+
+/// Active rotation about y by `a` (rad).
+#[inline]
+pub fn rot_y(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(c, 0.0, s, 0.0, 1.0, 0.0, -s, 0.0, c)
+}
+
+/// Active rotation about z by `a` (rad).
+#[inline]
+pub fn rot_z(a: f64) -> Matrix3<f64> {
+    let (s, c) = a.sin_cos();
+    Matrix3::new(c, -s, 0.0, s, c, 0.0, 0.0, 0.0, 1.0)
+}
+
+/// `Rz(z) * Ry(y) * Rx(x)` (rad): the z-y-x (yaw-pitch-roll) composition used for both attitude
+/// and boresight.
+#[inline]
+pub fn r_zyx(x_rad: f64, y_rad: f64, z_rad: f64) -> Matrix3<f64> {
+    let (sx, cx) = x_rad.sin_cos();
+    let (sy, cy) = y_rad.sin_cos();
+    let (sz, cz) = z_rad.sin_cos();
+    Matrix3::new(
+        cz * cy,
+        cz * sy * sx - sz * cx,
+        cz * sy * cx + sz * sx,
+        sz * cy,
+        sz * sy * sx + cz * cx,
+        sz * sy * cx - cz * sx,
+        -sy,
+        cy * sx,
+        cy * cx,
+    )
+}
+
+/// Body-to-NED attitude matrix `R_b^n` from roll, pitch, true heading (rad).
+#[inline]
+pub fn r_b_to_n(roll_rad: f64, pitch_rad: f64, heading_rad: f64) -> Matrix3<f64> {
+    r_zyx(roll_rad, pitch_rad, heading_rad)
+}
+
+/// Body-to-NED attitude quaternion, same rotation as [`r_b_to_n`].
+#[inline]
+pub fn q_b_to_n(roll_rad: f64, pitch_rad: f64, heading_rad: f64) -> UnitQuaternion<f64> {
+    UnitQuaternion::from_euler_angles(roll_rad, pitch_rad, heading_rad)
+}
+
+/// Inverse of [`r_zyx`]: `(x, y, z)` angles (rad) with x, z in (-pi, pi], y in [-pi/2, pi/2].
+pub fn zyx_angles(r: &Matrix3<f64>) -> (f64, f64, f64) {
+    let y = (-r[(2, 0)]).clamp(-1.0, 1.0).asin();
+    let x = r[(2, 1)].atan2(r[(2, 2)]);
+    let z = r[(1, 0)].atan2(r[(0, 0)]);
+    (x, y, z)
+}
+
+/// Roll, pitch, heading (rad) of an attitude quaternion; heading in [0, 2 pi).
+pub fn roll_pitch_heading(q: &UnitQuaternion<f64>) -> (f64, f64, f64) {
+    let (r, p, h) = zyx_angles(Rotation3::from(*q).matrix());
+    (r, p, wrap_two_pi(h))
+}
+
+/// Wraps an angle into (-pi, pi].
+#[inline]
+pub fn wrap_pi(a: f64) -> f64 {
+    let w = a.rem_euclid(TAU);
+    if w > PI {
+        w - TAU
+    } else {
+        w
+    }
+}
+
+/// Wraps an angle into [0, 2 pi).
+#[inline]
+pub fn wrap_two_pi(a: f64) -> f64 {
+    let w = a.rem_euclid(TAU);
+    if w >= TAU {
+        0.0
+    } else {
+        w
+    }
+}
+
+/// Skew-symmetric matrix `[v]x` with `[v]x w = v x w`.
+#[inline]
+pub fn skew(v: &Vector3<f64>) -> Matrix3<f64> {
+    Matrix3::new(0.0, -v.z, v.y, v.z, 0.0, -v.x, -v.y, v.x, 0.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn zyx_matches_product_and_quaternion() {
+        let (x, y, z) = (0.3, -0.4, 2.9);
+        let prod = rot_z(z) * rot_y(y) * rot_x(x);
+        assert!((r_zyx(x, y, z) - prod).norm() < 1e-15);
+        let q = q_b_to_n(x, y, z);
+        assert!((q.to_rotation_matrix().matrix() - prod).norm() < 1e-15);
+        let (xa, ya, za) = zyx_angles(&prod);
+        assert!((xa - x).abs() < 1e-14 && (ya - y).abs() < 1e-14 && (za - z).abs() < 1e-14);
+    }
+
+    #[test]
+    fn heading_is_clockwise_from_north() {
+        // Heading 90 deg: body x (forward) points East in NED.
+        let fwd = r_b_to_n(0.0, 0.0, PI / 2.0) * Vector3::x();
+        assert!((fwd - Vector3::y()).norm() < 1e-15);
+        // Positive pitch raises the nose: forward gets a negative Down component.
+        let fwd = r_b_to_n(0.0, 0.1, 0.0) * Vector3::x();
+        assert!(fwd.z < 0.0);
+        // Positive roll lowers the right wing: body y gets a positive Down component.
+        let right = r_b_to_n(0.1, 0.0, 0.0) * Vector3::y();
+        assert!(right.z > 0.0);
+    }
+
+    #[test]
+    fn wraps() {
+        assert!((wrap_pi(3.0 * PI) - PI).abs() < 1e-12);
+        assert!((wrap_pi(-PI) - PI).abs() < 1e-12);
+        assert!(wrap_two_pi(-1e-20) < TAU);
+        assert!((wrap_two_pi(-0.5) - (TAU - 0.5)).abs() < 1e-15);
+    }
+}

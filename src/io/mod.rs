@@ -1,0 +1,1 @@
+//! File formats that cross the project's boundary (SPEC 6 and 7).

@@ -1,0 +1,13 @@
+//! kinescan: post-processing for mobile (vehicle-borne) laser scanning.
+//!
+//! Data flows one way through the modules: `geo` (ellipsoid, rotations, projections) ->
+//! `io` (file formats) -> `trajectory` -> `timing` -> `georef` -> `uncertainty` ->
+//! `pipeline`; `sim` and `calib` sit beside the pipeline and use the lower layers.
+//! Conventions (frames, signs, time model) follow `../shared/SPEC.md`, restated in `docs/`.
+#![forbid(unsafe_op_in_unsafe_fn)]
+
+pub mod error;
+pub mod geo;
+pub mod io;
+
+pub use error::{Error, Result};
