@@ -1,0 +1,97 @@
+//! Read-only memory maps of fixed-size-record files.
+
+use crate::{Error, Result};
+use memmap2::Mmap;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+/// A memory-mapped file of `header_bytes` followed by whole records of `record_bytes` each.
+#[derive(Debug)]
+pub struct MappedRecords {
+    path: PathBuf,
+    map: Option<Mmap>,
+    header_bytes: usize,
+    record_bytes: usize,
+    len: usize,
+}
+
+impl MappedRecords {
+    /// Maps `path`; refuses a file whose body is not a whole number of records.
+    pub fn open(path: &Path, header_bytes: usize, record_bytes: usize, kind: &str) -> Result<Self> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        let size = file.metadata().map_err(|e| Error::io(path, e))?.len() as usize;
+        if size < header_bytes {
+            return Err(Error::bad_file(
+                path,
+                format!("{kind}: {size} bytes is shorter than the {header_bytes}-byte header"),
+            ));
+        }
+        let body = size - header_bytes;
+        if body % record_bytes != 0 {
+            return Err(Error::bad_file(
+                path,
+                format!(
+                    "{kind}: size {size} B is not a whole number of {record_bytes}-byte records \
+                     ({} whole records and {} stray bytes: truncated or not a {kind} file)",
+                    body / record_bytes,
+                    body % record_bytes
+                ),
+            ));
+        }
+        // An empty file cannot be mapped on every platform; it simply has no records.
+        let map = if size == 0 {
+            None
+        } else {
+            // SAFETY: the map is read-only; kinescan never writes its inputs. As with any mmap,
+            // another process truncating the file while it is mapped is outside our control.
+            Some(unsafe { Mmap::map(&file) }.map_err(|e| Error::io(path, e))?)
+        };
+        Ok(MappedRecords {
+            path: path.to_path_buf(),
+            map,
+            header_bytes,
+            record_bytes,
+            len: body / record_bytes,
+        })
+    }
+
+    /// File path.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Number of records.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when there are no records.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Header bytes.
+    pub fn header(&self) -> &[u8] {
+        self.map.as_deref().map_or(&[], |m| &m[..self.header_bytes])
+    }
+
+    /// Bytes of record `i` (panics when out of range: an internal invariant).
+    #[inline]
+    pub fn record(&self, i: usize) -> &[u8] {
+        let start = self.header_bytes + i * self.record_bytes;
+        &self.map.as_deref().expect("record of an empty file")[start..start + self.record_bytes]
+    }
+
+    /// Bytes of records `range`.
+    pub fn records(&self, range: std::ops::Range<usize>) -> &[u8] {
+        let start = self.header_bytes + range.start * self.record_bytes;
+        let end = self.header_bytes + range.end * self.record_bytes;
+        self.map.as_deref().map_or(&[], |m| &m[start..end])
+    }
+}
+
+/// Little-endian f64 at byte offset `at` of `bytes`.
+#[inline]
+pub fn f64_le(bytes: &[u8], at: usize) -> f64 {
+    f64::from_le_bytes(bytes[at..at + 8].try_into().expect("8 bytes"))
+}
