@@ -11,3 +11,6 @@ pub mod geo;
 pub mod io;
 
 pub use error::{Error, Result};
+pub mod georef;
+pub mod timing;
+pub mod trajectory;

@@ -1,0 +1,114 @@
+//! The scanner time model (SPEC 2): when did a return of profile `n` at mirror angle `beta`
+//! happen?
+//!
+//! Software sync: `t = t0 + T * (n + f(beta))`; hardware (PPS) profile tags:
+//! `t = t_n + T * f(beta)`; with `f(beta) = wrap(dir * (beta - beta_start)) / (2 pi)` and
+//! `wrap` into [0, 2 pi). Times are GPS seconds, angles radians.
+
+use crate::geo::rotations::wrap_two_pi;
+use std::f64::consts::TAU;
+
+/// Sense of mirror rotation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MirrorDirection {
+    /// beta increases with time (`dir` = +1).
+    Increasing,
+    /// beta decreases with time (`dir` = -1).
+    Decreasing,
+}
+
+impl MirrorDirection {
+    /// `dir` of SPEC 2: +1 or -1.
+    pub fn sign(self) -> f64 {
+        match self {
+            MirrorDirection::Increasing => 1.0,
+            MirrorDirection::Decreasing => -1.0,
+        }
+    }
+}
+
+/// The mirror geometry that places a return inside its profile.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Mirror {
+    /// Mirror angle at which the profile counter increments (rad).
+    pub beta_start_rad: f64,
+    /// Sense of rotation.
+    pub direction: MirrorDirection,
+}
+
+impl Mirror {
+    /// Fraction of a revolution since the profile started, in [0, 1).
+    #[inline]
+    pub fn fraction(&self, beta_rad: f64) -> f64 {
+        wrap_two_pi(self.direction.sign() * (beta_rad - self.beta_start_rad)) / TAU
+    }
+}
+
+/// Software clock: profile 0 starts at `t0_s`, profiles last `period_s`.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ScannerClock {
+    /// GPS time of the start of profile 0 (s).
+    pub t0_s: f64,
+    /// Mirror period T (s).
+    pub period_s: f64,
+    /// Mirror geometry.
+    pub mirror: Mirror,
+}
+
+impl ScannerClock {
+    /// GPS time (s) of a return of `profile` at mirror angle `beta_rad`.
+    #[inline]
+    pub fn time_of(&self, profile: u32, beta_rad: f64) -> f64 {
+        self.t0_s + self.period_s * (profile as f64 + self.mirror.fraction(beta_rad))
+    }
+
+    /// Partial derivatives of [`Self::time_of`] with respect to (t0, T): (1, n + f(beta)).
+    #[inline]
+    pub fn partials(&self, profile: u32, beta_rad: f64) -> (f64, f64) {
+        (1.0, profile as f64 + self.mirror.fraction(beta_rad))
+    }
+
+    /// GPS time (s) of a return tagged with its profile's hardware start time `t_n_s`.
+    #[inline]
+    pub fn time_from_profile_tag(&self, t_n_s: f64, beta_rad: f64) -> f64 {
+        t_n_s + self.period_s * self.mirror.fraction(beta_rad)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fraction_wraps_and_follows_direction() {
+        let up = Mirror {
+            beta_start_rad: -3.0,
+            direction: MirrorDirection::Increasing,
+        };
+        assert!((up.fraction(-3.0)).abs() < 1e-15);
+        assert!((up.fraction(-3.0 + TAU / 4.0) - 0.25).abs() < 1e-15);
+        assert!((up.fraction(-3.0 - TAU / 4.0) - 0.75).abs() < 1e-15);
+        let down = Mirror {
+            direction: MirrorDirection::Decreasing,
+            ..up
+        };
+        assert!((down.fraction(-3.0 - TAU / 4.0) - 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn time_of_profile_and_angle() {
+        let m = Mirror {
+            beta_start_rad: 0.0,
+            direction: MirrorDirection::Increasing,
+        };
+        let c = ScannerClock {
+            t0_s: 1000.0,
+            period_s: 0.01,
+            mirror: m,
+        };
+        assert!((c.time_of(10, std::f64::consts::PI) - 1000.105).abs() < 1e-12);
+        assert_eq!(c.partials(10, std::f64::consts::PI), (1.0, 10.5));
+        assert!((c.time_from_profile_tag(5.0, std::f64::consts::PI) - 5.005).abs() < 1e-15);
+    }
+}

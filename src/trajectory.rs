@@ -1,0 +1,370 @@
+//! The navigation trajectory: position, attitude and their sigmas at any time.
+//!
+//! Interpolation (the one definition shared by the pipeline and the simulator):
+//! ECEF position, latitude, longitude, height, NED velocity and body rates are linear in time
+//! between neighbouring records; attitude `R_b^n` is spherical-linear (quaternion slerp on the
+//! shorter arc, so heading wraps through 359 -> 1 deg correctly, never Euler interpolation).
+//! SMRMSG sigmas are linear in time. Latency (SPEC 2): [`PoseCursor`] evaluates position at `t`
+//! and attitude at `t + tau`.
+
+use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
+use crate::geo::rotations::{q_b_to_n, wrap_pi};
+use crate::io::sbet::{SbetFile, SbetRecord};
+use crate::io::smrmsg::{SmrmsgFile, RAD_PER_ARCMIN};
+use crate::Result;
+use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use std::path::Path;
+
+/// Navigation state at one instant.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavSample {
+    /// GPS time (s).
+    pub t_s: f64,
+    /// IMU origin in ECEF `e` (m).
+    pub r_e_m: Vector3<f64>,
+    /// Geodetic latitude (rad).
+    pub lat_rad: f64,
+    /// Longitude (rad), (-pi, pi].
+    pub lon_rad: f64,
+    /// Ellipsoidal height (m).
+    pub h_m: f64,
+    /// Attitude `R_b^n` as a unit quaternion (body to NED).
+    pub q_b_to_n: UnitQuaternion<f64>,
+    /// Velocity in NED (m/s).
+    pub v_n_mps: Vector3<f64>,
+    /// Body angular rate (rad/s), body axes.
+    pub omega_b_radps: Vector3<f64>,
+}
+
+impl NavSample {
+    /// State from an SBET record: true heading = platform heading - wander angle; velocity
+    /// rotated from the wander-azimuth frame to NED.
+    pub fn from_sbet(r: &SbetRecord) -> Self {
+        let g = Geodetic {
+            lat_rad: r.lat_rad,
+            lon_rad: r.lon_rad,
+            h_m: r.alt_m,
+        };
+        let (sw, cw) = r.wander_rad.sin_cos();
+        // Wander x axis lies at azimuth -wander: v_w = R(wander) v_ne.
+        let v_n = Vector3::new(
+            cw * r.vel_x_mps + sw * r.vel_y_mps,
+            -sw * r.vel_x_mps + cw * r.vel_y_mps,
+            r.vel_z_mps,
+        );
+        NavSample {
+            t_s: r.time_s,
+            r_e_m: geodetic_to_ecef(g),
+            lat_rad: r.lat_rad,
+            lon_rad: wrap_pi(r.lon_rad),
+            h_m: r.alt_m,
+            q_b_to_n: q_b_to_n(r.roll_rad, r.pitch_rad, r.true_heading_rad()),
+            v_n_mps: v_n,
+            omega_b_radps: Vector3::new(r.rate_x_radps, r.rate_y_radps, r.rate_z_radps),
+        }
+    }
+}
+
+/// Spherical linear interpolation from `a` (w = 0) to `b` (w = 1) along the shorter arc.
+#[inline]
+pub fn slerp(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>, w: f64) -> UnitQuaternion<f64> {
+    let (qa, mut qb) = (a.quaternion().coords, b.quaternion().coords);
+    let mut dot = qa.dot(&qb);
+    if dot < 0.0 {
+        qb = -qb;
+        dot = -dot;
+    }
+    let theta = dot.min(1.0).acos();
+    let coords = if theta < 1e-6 {
+        // Linear blend: error O(theta^3) < 1e-18 rad here.
+        qa * (1.0 - w) + qb * w
+    } else {
+        let s = theta.sin();
+        qa * (((1.0 - w) * theta).sin() / s) + qb * ((w * theta).sin() / s)
+    };
+    UnitQuaternion::from_quaternion(Quaternion::from(coords))
+}
+
+/// Interpolates between `a` and `b` at `t` (normally `a.t_s <= t <= b.t_s`; a small
+/// extrapolation is linear too).
+#[inline]
+pub fn interpolate(a: &NavSample, b: &NavSample, t: f64) -> NavSample {
+    let w = (t - a.t_s) / (b.t_s - a.t_s);
+    let lerp = |x: f64, y: f64| x + w * (y - x);
+    NavSample {
+        t_s: t,
+        r_e_m: a.r_e_m + (b.r_e_m - a.r_e_m) * w,
+        lat_rad: lerp(a.lat_rad, b.lat_rad),
+        lon_rad: wrap_pi(a.lon_rad + w * wrap_pi(b.lon_rad - a.lon_rad)),
+        h_m: lerp(a.h_m, b.h_m),
+        q_b_to_n: slerp(&a.q_b_to_n, &b.q_b_to_n, w),
+        v_n_mps: a.v_n_mps + (b.v_n_mps - a.v_n_mps) * w,
+        omega_b_radps: a.omega_b_radps + (b.omega_b_radps - a.omega_b_radps) * w,
+    }
+}
+
+/// Why a time cannot be given a navigation state: per-return rejection reasons.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NavGap {
+    /// Before the first or after the last trajectory record.
+    OutsideTrajectory,
+    /// Between two records further apart than the configured maximum gap.
+    TrajectoryGap,
+    /// Outside the SMRMSG span (sigmas requested but not available).
+    OutsideAccuracy,
+}
+
+/// Navigation sigmas (1 sigma) at one instant (SPEC 5).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavSigma {
+    /// North, east, down position sigma (m).
+    pub pos_ned_m: Vector3<f64>,
+    /// Roll, pitch, heading sigma (rad).
+    pub att_rph_rad: Vector3<f64>,
+}
+
+/// Trajectory options.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrajectoryOptions {
+    /// Longest interval between records that may be interpolated across (s).
+    pub max_gap_s: f64,
+}
+
+impl Default for TrajectoryOptions {
+    fn default() -> Self {
+        TrajectoryOptions { max_gap_s: 0.1 }
+    }
+}
+
+/// A memory-mapped SBET (and optional SMRMSG) trajectory. Records are decoded on demand by
+/// cursors, so memory does not grow with the length of the day.
+#[derive(Debug)]
+pub struct Trajectory {
+    sbet: SbetFile,
+    smrmsg: Option<SmrmsgFile>,
+    opts: TrajectoryOptions,
+}
+
+impl Trajectory {
+    /// Opens and validates the SBET and, if given, the SMRMSG file.
+    pub fn open(sbet: &Path, smrmsg: Option<&Path>, opts: TrajectoryOptions) -> Result<Self> {
+        let sbet = SbetFile::open(sbet)?;
+        let smrmsg = smrmsg.map(SmrmsgFile::open).transpose()?;
+        Ok(Trajectory { sbet, smrmsg, opts })
+    }
+
+    /// The SBET file.
+    pub fn sbet(&self) -> &SbetFile {
+        &self.sbet
+    }
+
+    /// The SMRMSG file, if any.
+    pub fn smrmsg(&self) -> Option<&SmrmsgFile> {
+        self.smrmsg.as_ref()
+    }
+
+    /// First and last SBET times (s).
+    pub fn span_s(&self) -> (f64, f64) {
+        (self.sbet.time_s(0), self.sbet.time_s(self.sbet.len() - 1))
+    }
+
+    /// A cursor for time-ordered queries (cheap; one per thread or chunk).
+    pub fn cursor(&self) -> NavCursor<'_> {
+        NavCursor {
+            traj: self,
+            idx: usize::MAX,
+            a: None,
+            b: None,
+        }
+    }
+
+    /// A cursor over SMRMSG sigmas, or `None` without an SMRMSG file.
+    pub fn sigma_cursor(&self) -> Option<SigmaCursor<'_>> {
+        self.smrmsg
+            .as_ref()
+            .map(|f| SigmaCursor { file: f, idx: 0 })
+    }
+}
+
+/// Index `i` with `t(i) <= t < t(i+1)` (or the last interval for t == last), found from a
+/// previous index first (time-ordered queries) and by bisection otherwise.
+fn locate(len: usize, time: impl Fn(usize) -> f64, hint: usize, t: f64) -> Option<usize> {
+    if len < 2 || t < time(0) || t > time(len - 1) {
+        return None;
+    }
+    for i in [hint, hint.wrapping_add(1)] {
+        if i + 1 < len && time(i) <= t && t <= time(i + 1) {
+            return Some(i);
+        }
+    }
+    let (mut lo, mut hi) = (0, len - 1);
+    while hi - lo > 1 {
+        let mid = (lo + hi) / 2;
+        if time(mid) <= t {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    Some(lo)
+}
+
+/// Interpolating cursor over the SBET; caches the current interval's decoded records.
+pub struct NavCursor<'a> {
+    traj: &'a Trajectory,
+    idx: usize,
+    a: Option<NavSample>,
+    b: Option<NavSample>,
+}
+
+impl NavCursor<'_> {
+    /// Navigation state at GPS time `t` (s).
+    pub fn at(&mut self, t: f64) -> Result<NavSample, NavGap> {
+        let sbet = &self.traj.sbet;
+        let i =
+            locate(sbet.len(), |k| sbet.time_s(k), self.idx, t).ok_or(NavGap::OutsideTrajectory)?;
+        if i != self.idx {
+            // Moving one interval forward reuses the decoded end record.
+            let a = match (self.b, i == self.idx.wrapping_add(1)) {
+                (Some(b), true) => b,
+                _ => NavSample::from_sbet(&sbet.record(i)),
+            };
+            self.a = Some(a);
+            self.b = Some(NavSample::from_sbet(&sbet.record(i + 1)));
+            self.idx = i;
+        }
+        let (a, b) = (self.a.expect("set above"), self.b.expect("set above"));
+        if b.t_s - a.t_s > self.traj.opts.max_gap_s {
+            return Err(NavGap::TrajectoryGap);
+        }
+        Ok(interpolate(&a, &b, t))
+    }
+}
+
+/// Interpolating cursor over SMRMSG sigmas.
+pub struct SigmaCursor<'a> {
+    file: &'a SmrmsgFile,
+    idx: usize,
+}
+
+impl SigmaCursor<'_> {
+    /// Sigmas at GPS time `t` (s), linear between records.
+    pub fn at(&mut self, t: f64) -> Result<NavSigma, NavGap> {
+        let f = self.file;
+        let i = locate(f.len(), |k| f.time_s(k), self.idx, t).ok_or(NavGap::OutsideAccuracy)?;
+        self.idx = i;
+        let (a, b) = (f.record(i), f.record(i + 1));
+        let w = (t - a.time_s) / (b.time_s - a.time_s);
+        let l = |x: f64, y: f64| x + w * (y - x);
+        Ok(NavSigma {
+            pos_ned_m: Vector3::new(
+                l(a.north_m, b.north_m),
+                l(a.east_m, b.east_m),
+                l(a.down_m, b.down_m),
+            ),
+            att_rph_rad: Vector3::new(
+                l(a.roll_arcmin, b.roll_arcmin),
+                l(a.pitch_arcmin, b.pitch_arcmin),
+                l(a.heading_arcmin, b.heading_arcmin),
+            ) * RAD_PER_ARCMIN,
+        })
+    }
+}
+
+/// Pose for georeferencing one return: position at `t`, attitude at `t + tau` (SPEC 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pose {
+    /// Navigation state at `t + position latency` (position, lat/lon, velocity).
+    pub nav: NavSample,
+    /// Attitude `R_b^n` at `t + tau`.
+    pub q_b_to_n: UnitQuaternion<f64>,
+    /// Body angular rate at `t + tau` (rad/s).
+    pub omega_b_radps: Vector3<f64>,
+}
+
+/// Two cursors (position and attitude) applying the latencies.
+pub struct PoseCursor<'a> {
+    pos: NavCursor<'a>,
+    att: NavCursor<'a>,
+    attitude_latency_s: f64,
+    position_latency_s: f64,
+}
+
+impl<'a> PoseCursor<'a> {
+    /// Cursor with attitude latency `tau` and position latency (s), SPEC 2 signs.
+    pub fn new(traj: &'a Trajectory, attitude_latency_s: f64, position_latency_s: f64) -> Self {
+        PoseCursor {
+            pos: traj.cursor(),
+            att: traj.cursor(),
+            attitude_latency_s,
+            position_latency_s,
+        }
+    }
+
+    /// Pose for a return measured at GPS time `t` (s).
+    #[inline]
+    pub fn at(&mut self, t: f64) -> Result<Pose, NavGap> {
+        let nav = self.pos.at(t + self.position_latency_s)?;
+        if self.attitude_latency_s == self.position_latency_s {
+            return Ok(Pose {
+                nav,
+                q_b_to_n: nav.q_b_to_n,
+                omega_b_radps: nav.omega_b_radps,
+            });
+        }
+        let att = self.att.at(t + self.attitude_latency_s)?;
+        Ok(Pose {
+            nav,
+            q_b_to_n: att.q_b_to_n,
+            omega_b_radps: att.omega_b_radps,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geo::rotations::roll_pitch_heading;
+
+    #[test]
+    fn slerp_crosses_north_the_short_way() {
+        let a = q_b_to_n(0.0, 0.0, 359f64.to_radians());
+        let b = q_b_to_n(0.0, 0.0, 1f64.to_radians());
+        for k in 0..=10 {
+            let w = k as f64 / 10.0;
+            let (_, _, h) = roll_pitch_heading(&slerp(&a, &b, w));
+            let expect = (359.0 + 2.0 * w).rem_euclid(360.0);
+            let err = wrap_pi(h - expect.to_radians()).abs();
+            assert!(err < 1e-12, "w {w}: heading {} deg", h.to_degrees());
+        }
+    }
+
+    #[test]
+    fn slerp_constant_rate_about_a_fixed_axis() {
+        // Interpolating a rotation about one axis must give the angle linear in w.
+        let axis = nalgebra::Unit::new_normalize(Vector3::new(0.3, -0.5, 0.8));
+        let a = UnitQuaternion::from_axis_angle(&axis, 0.2);
+        let b = UnitQuaternion::from_axis_angle(&axis, 0.9);
+        let mid = slerp(&a, &b, 0.25);
+        let expect = UnitQuaternion::from_axis_angle(&axis, 0.2 + 0.25 * 0.7);
+        assert!(mid.angle_to(&expect) < 1e-14);
+        let same = slerp(&a, &a, 0.7);
+        assert!(same.angle_to(&a) < 1e-15);
+    }
+
+    #[test]
+    fn wander_velocity_rotates_to_ned() {
+        // Moving due east with wander 30 deg: heading from wander x is 90 + 30 deg.
+        let w = 30f64.to_radians();
+        let mut r = SbetRecord {
+            lat_rad: 0.5,
+            wander_rad: w,
+            ..Default::default()
+        };
+        r.vel_x_mps = 10.0 * (90f64.to_radians() + w).cos();
+        r.vel_y_mps = 10.0 * (90f64.to_radians() + w).sin();
+        let s = NavSample::from_sbet(&r);
+        assert!((s.v_n_mps - Vector3::new(0.0, 10.0, 0.0)).norm() < 1e-12);
+    }
+}
