@@ -12,5 +12,6 @@ pub mod io;
 
 pub use error::{Error, Result};
 pub mod georef;
+pub mod pipeline;
 pub mod timing;
 pub mod trajectory;

@@ -126,6 +126,16 @@ impl ProfileFile {
         self.columns
     }
 
+    /// The raw header bytes (for hashing the file as it is read).
+    pub fn header_bytes(&self) -> &[u8] {
+        self.records.header()
+    }
+
+    /// The raw bytes of records `range` (for hashing the file as it is read).
+    pub fn record_bytes(&self, range: std::ops::Range<usize>) -> &[u8] {
+        self.records.records(range)
+    }
+
     /// Return `i`.
     #[inline]
     pub fn get(&self, i: usize) -> RawReturn {
