@@ -4,4 +4,5 @@
 //! down); `s` scanner. All angles in radians, lengths in metres.
 
 pub mod ellipsoid;
+pub mod projection;
 pub mod rotations;
