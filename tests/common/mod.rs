@@ -108,3 +108,17 @@ pub fn r_n_to_e_origin() -> nalgebra::Matrix3<f64> {
 
 /// A full turn.
 pub const FULL_TURN: f64 = TAU;
+
+/// The shared real-data folder: `$KINESCAN_REALDATA`, else `../shared/realdata` beside the
+/// crate. `None` (after printing a skip notice naming `test`) when absent.
+pub fn realdata(test: &str) -> Option<PathBuf> {
+    let candidates = [
+        std::env::var_os("KINESCAN_REALDATA").map(PathBuf::from),
+        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata")),
+    ];
+    let found = candidates.into_iter().flatten().find(|p| p.join("PROVENANCE.md").exists());
+    if found.is_none() {
+        eprintln!("SKIPPED {test}: ../shared/realdata not found (set KINESCAN_REALDATA)");
+    }
+    found
+}
