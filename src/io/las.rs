@@ -353,9 +353,9 @@ impl ChunkStats {
     fn add(&mut self, counts: [i32; 3], return_number: u8, gps_time: f64) {
         self.count += 1;
         self.points_by_return[usize::from(return_number) - 1] += 1;
-        for k in 0..3 {
-            self.min_counts[k] = self.min_counts[k].min(counts[k]);
-            self.max_counts[k] = self.max_counts[k].max(counts[k]);
+        for (k, c) in counts.into_iter().enumerate() {
+            self.min_counts[k] = self.min_counts[k].min(c);
+            self.max_counts[k] = self.max_counts[k].max(c);
         }
         self.gps_time_min = self.gps_time_min.min(gps_time);
         self.gps_time_max = self.gps_time_max.max(gps_time);
