@@ -9,5 +9,6 @@
 pub mod error;
 pub mod geo;
 pub mod io;
+pub mod plot;
 
 pub use error::{Error, Result};
