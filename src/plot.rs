@@ -814,11 +814,11 @@ mod tests {
         .line("model", &fit)
         .save_png(&scatter_path)
         .unwrap();
-        // Sum of four low-discrepancy uniforms: a bell shape without randomness.
-        let u = |i: u32, k: f64| (f64::from(i) * k).fract() - 0.5;
-        let values: Vec<f64> = (0..2000)
-            .map(|i| u(i, 0.618) + u(i, 0.414) + u(i, 0.732) + u(i, 0.236))
-            .collect();
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let normal = Normal::new(0.0, 0.8).unwrap();
+        let values: Vec<f64> = (0..2000).map(|_| normal.sample(&mut rng)).collect();
         let hist_path = out.join("plot_hist.png");
         Plot::new("Plane residuals", "distance (mm)", "count")
             .histogram("residuals", &values, 25)
