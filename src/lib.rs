@@ -9,6 +9,7 @@
 pub mod error;
 pub mod geo;
 pub mod io;
+pub mod plot;
 
 pub use error::{Error, Result};
 pub mod georef;

@@ -291,6 +291,30 @@ fn empty_file_is_valid() {
 }
 
 #[test]
+fn no_extra_dims_means_no_extra_bytes_vlr() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("plain.las");
+    let time = GpsTimeConvention::WeekSeconds;
+    let layout = PointLayout::new(OFFSET_M, time, vec![]).unwrap();
+    let pts = points(50, 9);
+    write_file(
+        &path,
+        LasWriterConfig {
+            layout,
+            ..config(time)
+        },
+        &pts,
+        16,
+    );
+    let (header, back) = read_back(&path);
+    assert_eq!(header.point_format().extra_bytes, 0);
+    assert_eq!(header.vlrs().len(), 1);
+    assert!(header.vlrs()[0].is_wkt_crs());
+    assert_eq!(back.len(), 50);
+    assert!((back[49].x - pts[49].x).abs() <= 0.5e-4 * (1.0 + 1e-9));
+}
+
+#[test]
 fn coordinate_outside_i32_is_an_error() {
     let layout = config(GpsTimeConvention::WeekSeconds).layout;
     // 0.0001 m scale reaches +-214 748.3647 m about the offset; 250 km is 35.25 km too far.

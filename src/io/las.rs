@@ -353,9 +353,9 @@ impl ChunkStats {
     fn add(&mut self, counts: [i32; 3], return_number: u8, gps_time: f64) {
         self.count += 1;
         self.points_by_return[usize::from(return_number) - 1] += 1;
-        for k in 0..3 {
-            self.min_counts[k] = self.min_counts[k].min(counts[k]);
-            self.max_counts[k] = self.max_counts[k].max(counts[k]);
+        for (k, c) in counts.into_iter().enumerate() {
+            self.min_counts[k] = self.min_counts[k].min(c);
+            self.max_counts[k] = self.max_counts[k].max(c);
         }
         self.gps_time_min = self.gps_time_min.min(gps_time);
         self.gps_time_max = self.gps_time_max.max(gps_time);
@@ -645,7 +645,7 @@ fn header_bytes(
         file_creation_year: config.creation_year,
         header_size: HEADER_SIZE as u16,
         offset_to_point_data: offset_to_points,
-        number_of_variable_length_records: 2,
+        number_of_variable_length_records: 1 + u32::from(!layout.extra_dims.is_empty()),
         point_data_record_format: POINT_FORMAT,
         point_data_record_length: layout.record_len as u16,
         number_of_point_records: 0,
@@ -682,7 +682,7 @@ fn header_bytes(
     Ok(out)
 }
 
-/// The WKT CRS VLR then the Extra Bytes VLR, framed.
+/// The WKT CRS VLR then (with extra dimensions) the Extra Bytes VLR, framed.
 fn vlr_bytes(config: &LasWriterConfig) -> Result<Vec<u8>> {
     if config.wkt.is_empty() || config.wkt.contains('\0') {
         return Err(Error::Invalid(
@@ -700,6 +700,9 @@ fn vlr_bytes(config: &LasWriterConfig) -> Result<Vec<u8>> {
         wkt,
     )?;
     let dims = &config.layout.extra_dims;
+    if dims.is_empty() {
+        return Ok(out);
+    }
     let mut descriptors = Vec::with_capacity(dims.len() * EXTRA_BYTES_DESCRIPTOR_LEN);
     for dim in dims {
         descriptors.extend_from_slice(&extra_bytes_descriptor(dim));
