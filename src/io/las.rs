@@ -362,6 +362,18 @@ impl ChunkStats {
     }
 }
 
+/// Stats of records already encoded with `layout` (e.g. part of an encoded chunk split across
+/// two files), read back from the bytes: equal to what [`encode_points`] returned for them.
+pub fn stats_of_records(bytes: &[u8], layout: &PointLayout) -> ChunkStats {
+    let mut stats = ChunkStats::empty(layout.record_len);
+    for rec in bytes.chunks_exact(layout.record_len) {
+        let i32_at = |at: usize| i32::from_le_bytes(rec[at..at + 4].try_into().expect("4 bytes"));
+        let gps_time = f64::from_le_bytes(rec[22..30].try_into().expect("8 bytes"));
+        stats.add([i32_at(0), i32_at(4), i32_at(8)], rec[14] & 0x0f, gps_time);
+    }
+    stats
+}
+
 /// Serialises `points` into format 6 records with the layout's extra bytes.
 ///
 /// `out` is cleared, then holds `points.len() * layout.record_len()` bytes (its contents are

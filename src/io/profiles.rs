@@ -136,6 +136,11 @@ impl ProfileFile {
         self.records.records(range)
     }
 
+    /// Releases the resident pages of records `range` (see [`MappedRecords::release`]).
+    pub fn release(&self, range: std::ops::Range<usize>) {
+        self.records.release(range)
+    }
+
     /// Return `i`.
     #[inline]
     pub fn get(&self, i: usize) -> RawReturn {

@@ -6,10 +6,11 @@ use super::report::{
     FileRecord, InputReport, OutputReport, RejectReason, ReturnCounts, RunReport, StageTiming,
 };
 use super::sink::{LasSink, SinkSettings};
+use crate::geo::local::LocalProjection;
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::wrap_pi;
 use crate::georef::{georeference, point_s, Sensor};
-use crate::io::las::LasPoint;
+use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::{Mirror, ScannerClock};
 use crate::trajectory::{NavGap, PoseCursor, Trajectory, TrajectoryOptions};
@@ -57,9 +58,10 @@ struct Georeferencer<'a> {
     range_dimension: bool,
 }
 
-/// The result of one chunk of returns.
+/// The result of one chunk of returns: its LAS records, already encoded.
 struct ChunkOut {
-    points: Vec<LasPoint>,
+    records: Vec<u8>,
+    stats: ChunkStats,
     counts: [u64; RejectReason::ALL.len()],
     first_reject: Option<(usize, RejectReason)>,
     profiles: Option<(u32, u32)>,
@@ -101,6 +103,7 @@ impl Georeferencer<'_> {
         &self,
         r: &RawReturn,
         cursor: &mut PoseCursor,
+        local: &mut Option<LocalProjection>,
     ) -> Result<(LasPoint, f64), RejectReason> {
         let alpha = if self.columns.alpha {
             r.alpha_rad
@@ -124,7 +127,9 @@ impl Georeferencer<'_> {
             &self.sensor,
             &point_s(&self.sensor, r.range_m, alpha, r.beta_rad),
         );
-        let x_m = self.frame.ecef_to_map(&x_e);
+        let x_m = self
+            .local_projection(local, &pose.nav.r_e_m)
+            .ecef_to_map(&x_e);
         let mut p = LasPoint {
             x: x_m.x,
             y: x_m.y,
@@ -141,9 +146,32 @@ impl Georeferencer<'_> {
         Ok((p, t))
     }
 
-    fn chunk(&self, file: &ProfileFile, range: std::ops::Range<usize>) -> ChunkOut {
+    /// The map projection expanded about the vehicle, re-expanded when it has moved
+    /// [`RECENTRE_M`] from the expansion centre.
+    #[inline]
+    fn local_projection<'p>(
+        &self,
+        local: &'p mut Option<LocalProjection>,
+        vehicle_e: &Vector3<f64>,
+    ) -> &'p LocalProjection {
+        let stale = local
+            .as_ref()
+            .is_none_or(|l| (l.centre_e() - vehicle_e).norm_squared() > RECENTRE_M * RECENTRE_M);
+        if stale {
+            *local = Some(LocalProjection::new(self.frame, *vehicle_e));
+        }
+        local.as_ref().expect("set above")
+    }
+
+    fn chunk(
+        &self,
+        file: &ProfileFile,
+        range: std::ops::Range<usize>,
+        layout: &PointLayout,
+    ) -> Result<ChunkOut> {
         let mut out = ChunkOut {
-            points: Vec::with_capacity(range.len()),
+            records: Vec::with_capacity(range.len() * layout.record_len()),
+            stats: ChunkStats::empty(layout.record_len()),
             counts: [0; RejectReason::ALL.len()],
             first_reject: None,
             profiles: None,
@@ -153,6 +181,9 @@ impl Georeferencer<'_> {
         };
         let mut cursor =
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
+        let mut local = None;
+        let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
+        let mut scratch = Vec::new();
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {
@@ -168,9 +199,12 @@ impl Georeferencer<'_> {
             }
             prev = Some(r.profile);
             out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
-            match self.point(&r, &mut cursor) {
+            match self.point(&r, &mut cursor, &mut local) {
                 Ok((p, t)) => {
-                    out.points.push(p);
+                    batch.push(p);
+                    if batch.len() == ENCODE_BATCH {
+                        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+                    }
                     t_min = t_min.min(t);
                     t_max = t_max.max(t);
                 }
@@ -180,12 +214,36 @@ impl Georeferencer<'_> {
                 }
             }
         }
+        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
         if t_min <= t_max {
             out.time_span_s = Some((t_min, t_max));
         }
-        out
+        Ok(out)
     }
 }
+
+/// Points encoded at a time (keeps the per-thread point buffer in cache).
+const ENCODE_BATCH: usize = 1024;
+/// Distance (m) the vehicle may move from the local projection's centre before re-expanding;
+/// points further than `EXPANSION_RADIUS_M - RECENTRE_M` from the vehicle may fall back to the
+/// exact projection.
+const RECENTRE_M: f64 = 100.0;
+
+/// Encodes and empties `batch`, appending its records and stats to `out`.
+fn encode_into(
+    batch: &mut Vec<LasPoint>,
+    layout: &PointLayout,
+    scratch: &mut Vec<u8>,
+    out: &mut ChunkOut,
+) -> Result<()> {
+    let stats = encode_points(batch, layout, scratch)?;
+    out.records.extend_from_slice(scratch);
+    out.stats.merge(&stats);
+    batch.clear();
+    Ok(())
+}
+
+impl Georeferencer<'_> {}
 
 /// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
 pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
@@ -290,6 +348,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         threads,
         stages,
         returns_per_second: totals.read as f64 / georef_s.max(1e-9),
+        peak_rss_bytes: super::report::peak_rss_bytes(),
     })
 }
 
@@ -421,11 +480,16 @@ fn process_file(
             .step_by(chunk)
             .map(|s| s..(s + chunk).min(batch_end))
             .collect();
-        let outs: Vec<ChunkOut> = ranges
+        let layout = sink.layout();
+        let outs: Vec<Result<ChunkOut>> = ranges
             .par_iter()
-            .map(|r| g.chunk(file, r.clone()))
+            .map(|r| g.chunk(file, r.clone(), layout))
             .collect();
         for (r, out) in ranges.iter().zip(outs) {
+            let out = out.map_err(|e| {
+                let at = format!("records {}..{}", r.start, r.end);
+                Error::bad_record(file.path(), at, e.to_string())
+            })?;
             tracker.absorb(file.path(), r.start, &out)?;
             if strictness == Strictness::Fail {
                 if let Some((i, reason)) = out.first_reject {
@@ -439,12 +503,13 @@ fn process_file(
                 }
             }
             counts.read += r.len() as u64;
-            counts.written += out.points.len() as u64;
+            counts.written += out.stats.count;
             if let Some((a, b)) = out.time_span_s {
                 span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
             }
-            sink.write(&out.points)?;
+            sink.write(&out.records, &out.stats)?;
             hasher.update(file.record_bytes(r.clone()));
+            file.release(r.clone());
             bar.inc(r.len() as u64);
         }
     }

@@ -195,6 +195,16 @@ pub struct RunReport {
     pub stages: Vec<StageTiming>,
     /// Returns per second over the georeference-and-write stage.
     pub returns_per_second: f64,
+    /// Peak resident memory of the process (bytes; Linux `VmHWM`), when known.
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// Peak resident set size of this process (bytes), from `/proc/self/status` on Linux.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }
 
 impl RunReport {

@@ -5,8 +5,8 @@ use super::config::{PipelineConfig, SplitMode};
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
-    encode_points, ExtraDim, GpsTimeConvention, LasPoint, LasSummary, LasWriter, LasWriterConfig,
-    PointLayout,
+    stats_of_records, ChunkStats, ExtraDim, GpsTimeConvention, LasSummary, LasWriter,
+    LasWriterConfig, PointLayout,
 };
 use crate::trajectory::Trajectory;
 use crate::{Error, Result};
@@ -101,7 +101,6 @@ pub struct LasSink {
     parts: u32,
     input_stem: String,
     done: Vec<LasSummary>,
-    scratch: Vec<u8>,
 }
 
 impl LasSink {
@@ -114,7 +113,6 @@ impl LasSink {
             parts: 0,
             input_stem: String::new(),
             done: Vec::new(),
-            scratch: Vec::new(),
         }
     }
 
@@ -164,23 +162,35 @@ impl LasSink {
         Ok(())
     }
 
-    /// Writes points in order, rolling to a new file at the point limit.
-    pub fn write(&mut self, mut points: &[LasPoint]) -> Result<()> {
-        while !points.is_empty() || self.current.is_none() {
+    /// The record layout every file of this sink uses.
+    pub fn layout(&self) -> &PointLayout {
+        &self.settings.config.layout
+    }
+
+    /// Writes encoded records in order, rolling to a new file at the point limit.
+    pub fn write(&mut self, mut records: &[u8], stats: &ChunkStats) -> Result<()> {
+        let layout = self.settings.config.layout.clone();
+        let len = layout.record_len();
+        let mut whole = Some(stats.clone());
+        while !records.is_empty() || self.current.is_none() {
             if self.current.is_none() || self.in_current == self.settings.max_points {
                 self.close()?;
                 self.open()?;
             }
-            let room =
-                (self.settings.max_points - self.in_current).min(points.len() as u64) as usize;
-            let (now, rest) = points.split_at(room);
-            let stats = encode_points(now, &self.settings.config.layout, &mut self.scratch)?;
+            let n = (records.len() / len) as u64;
+            let room = (self.settings.max_points - self.in_current).min(n);
+            let (now, rest) = records.split_at(room as usize * len);
+            // Stats of a split chunk are recomputed from its records.
+            let part = match whole.take() {
+                Some(s) if room == n => s,
+                _ => stats_of_records(now, &layout),
+            };
             self.current
                 .as_mut()
                 .expect("opened above")
-                .write_encoded(&self.scratch, &stats)?;
-            self.in_current += now.len() as u64;
-            points = rest;
+                .write_encoded(now, &part)?;
+            self.in_current += room;
+            records = rest;
         }
         Ok(())
     }

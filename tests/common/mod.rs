@@ -116,7 +116,10 @@ pub fn realdata(test: &str) -> Option<PathBuf> {
         std::env::var_os("KINESCAN_REALDATA").map(PathBuf::from),
         Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata")),
     ];
-    let found = candidates.into_iter().flatten().find(|p| p.join("PROVENANCE.md").exists());
+    let found = candidates
+        .into_iter()
+        .flatten()
+        .find(|p| p.join("PROVENANCE.md").exists());
     if found.is_none() {
         eprintln!("SKIPPED {test}: ../shared/realdata not found (set KINESCAN_REALDATA)");
     }
