@@ -49,7 +49,7 @@ pub struct ProfileColumns {
 
 impl ProfileColumns {
     fn flags(self) -> u32 {
-        (self.alpha as u32) * FLAG_ALPHA | (self.time as u32) * FLAG_TIME
+        ((self.alpha as u32) * FLAG_ALPHA) | ((self.time as u32) * FLAG_TIME)
     }
 }
 
