@@ -6,5 +6,6 @@ pub mod mapped;
 pub mod patches;
 pub mod points;
 pub mod profiles;
+pub mod profiles_csv;
 pub mod sbet;
 pub mod smrmsg;
