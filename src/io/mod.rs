@@ -2,6 +2,7 @@
 
 pub mod atomic;
 mod csv_text;
+pub mod info;
 pub mod mapped;
 pub mod patches;
 pub mod points;
