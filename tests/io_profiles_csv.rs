@@ -184,3 +184,41 @@ fn writer_refuses_what_the_reader_would_refuse() {
     drop(w);
     assert!(!path.exists(), "an unfinished writer must leave no file");
 }
+
+#[test]
+fn describe_summarises_csv_and_binary_profiles_alike() {
+    use kinescan::io::info::{describe, FileKind};
+    let dir = tempfile::tempdir().unwrap();
+    let (csv, bin) = (dir.path().join("p.csv"), dir.path().join("p.bin"));
+    let body = "profile,beta_rad,range_m,intensity,alpha_rad,time_s\n\
+                3,-1.5,10,1,0,100.5\n3,1.5,,,0,100.6\n4,0,12,3,0,101\n9,0.2,5,4,0,102\n";
+    std::fs::write(&csv, body).unwrap();
+    import_csv(&csv, &bin).unwrap();
+    let (c, b) = (describe(&csv).unwrap(), describe(&bin).unwrap());
+    assert_eq!(
+        (c.kind, b.kind),
+        (FileKind::ProfilesCsv, FileKind::ProfilesBinary)
+    );
+    for info in [&c, &b] {
+        let p = info.profiles.as_ref().unwrap();
+        assert_eq!(
+            (p.tally.returns, p.tally.missing_returns, p.tally.profiles),
+            (4, 1, 3)
+        );
+        assert_eq!(
+            (p.tally.profile_range, p.tally.jump_count),
+            (Some((3, 9)), 1)
+        );
+        assert_eq!(p.tally.beta_range_rad, Some((-1.5, 1.5)));
+        assert_eq!(p.time_range_s, Some((100.5, 102.0)));
+        assert!(p.columns.alpha && p.columns.time);
+    }
+    // Jump positions: CSV line 5, binary record 3.
+    assert_eq!(
+        (
+            c.profiles.unwrap().tally.jumps[0].at,
+            b.profiles.unwrap().tally.jumps[0].at
+        ),
+        (5, 3)
+    );
+}

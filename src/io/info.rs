@@ -147,7 +147,10 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
         }
         FileKind::ProfilesBinary => {
             let f = ProfileFile::open(path)?;
-            let p = profile_info(f.columns(), (0..f.len()).map(|i| Ok((f.get(i), i as u64))))?;
+            let p = profile_info(
+                f.columns(),
+                (0..f.len()).map(|i| Ok((f.get_checked(i)?, i as u64))),
+            )?;
             info.records = p.tally.returns;
             info.profiles = Some(p);
         }
