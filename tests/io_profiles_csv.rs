@@ -222,3 +222,27 @@ fn describe_summarises_csv_and_binary_profiles_alike() {
         (5, 3)
     );
 }
+
+proptest::proptest! {
+    // Any finite f64 (subnormals, -0, extremes) survives the CSV text bit-exactly.
+    #[test]
+    fn any_finite_values_round_trip(
+        values in proptest::collection::vec((proptest::num::f64::ANY, 0.0..1e300f64, proptest::num::f64::ANY, proptest::num::f64::ANY), 1..40),
+        intensity in proptest::num::u16::ANY,
+    ) {
+        let columns = ProfileColumns { alpha: true, time: true };
+        let returns: Vec<RawReturn> = values
+            .iter()
+            .enumerate()
+            .filter(|(_, (b, _, a, t))| b.is_finite() && a.is_finite() && t.is_finite())
+            .map(|(i, &(beta_rad, range_m, alpha_rad, time_s))| RawReturn {
+                profile: i as u32, intensity, beta_rad, range_m, alpha_rad, time_s,
+            })
+            .collect();
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("p.csv");
+        write_csv(&csv, columns, &returns);
+        let back: Vec<RawReturn> = ProfileCsvReader::open(&csv).unwrap().map(Result::unwrap).collect();
+        proptest::prop_assert_eq!(back.iter().map(bits).collect::<Vec<_>>(), returns.iter().map(bits).collect::<Vec<_>>());
+    }
+}
