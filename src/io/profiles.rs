@@ -146,6 +146,30 @@ impl ProfileFile {
     pub fn get(&self, i: usize) -> RawReturn {
         decode(self.records.record(i))
     }
+
+    /// Return `i`, refused (naming the file and the 0-based record) when a value is not finite
+    /// or the range is negative.
+    pub fn get_checked(&self, i: usize) -> Result<RawReturn> {
+        let r = self.get(i);
+        let fields = [
+            ("beta_rad", r.beta_rad),
+            ("range_m", r.range_m),
+            ("alpha_rad", r.alpha_rad),
+            ("time_s", r.time_s),
+        ];
+        let problem = if let Some((name, v)) = fields.iter().find(|(_, v)| !v.is_finite()) {
+            format!("{name} is {v} (not finite)")
+        } else if r.range_m < 0.0 {
+            format!("range_m {} is negative", r.range_m)
+        } else {
+            return Ok(r);
+        };
+        Err(Error::bad_record(
+            self.path(),
+            format!("record {i}"),
+            problem,
+        ))
+    }
 }
 
 #[inline]
