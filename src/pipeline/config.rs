@@ -406,7 +406,7 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
             ),
         );
     }
-    if o.split == SplitMode::MaxPoints && !o.max_points_per_file.is_some_and(|n| n > 0) {
+    if o.split == SplitMode::MaxPoints && o.max_points_per_file.is_none_or(|n| n == 0) {
         return bad(
             "output.max_points_per_file",
             "split = \"max_points\" needs max_points_per_file > 0".into(),
