@@ -211,8 +211,8 @@ impl MapFrame {
     pub fn ecef_to_map(&self, x_e: &Vector3<f64>) -> Vector3<f64> {
         match *self {
             MapFrame::Utm { zone, north } => {
-                let (tau, sin_dlon, cos_dlon, h_m) = utm_point(zone, x_e);
-                let zeta = tm_zeta(tau, sin_dlon, cos_dlon);
+                let (lat, sin_dlon, cos_dlon, h_m) = utm_point(zone, x_e);
+                let zeta = tm_zeta(lat, sin_dlon, cos_dlon);
                 Vector3::new(
                     UTM_FALSE_EASTING_M + UTM_K0 * RECT_A_M * zeta.im,
                     false_northing_m(north) + UTM_K0 * RECT_A_M * zeta.re,
@@ -233,7 +233,7 @@ impl MapFrame {
         match *self {
             MapFrame::Utm { zone, north } => {
                 let (sin_dlon, cos_dlon) = (g.lon_rad - central_meridian_rad(zone)).sin_cos();
-                let zeta = tm_zeta(g.lat_rad.tan(), sin_dlon, cos_dlon);
+                let zeta = tm_zeta(Lat::from_rad(g.lat_rad), sin_dlon, cos_dlon);
                 Vector3::new(
                     UTM_FALSE_EASTING_M + UTM_K0 * RECT_A_M * zeta.im,
                     false_northing_m(north) + UTM_K0 * RECT_A_M * zeta.re,
@@ -350,11 +350,10 @@ impl MapFrame {
     pub fn r_enu_to_map_axes(&self, x_e: &Vector3<f64>) -> Matrix3<f64> {
         match *self {
             MapFrame::Utm { zone, .. } => {
-                let (tau, sin_dlon, cos_dlon, h_m) = utm_point(zone, x_e);
-                let kg = tm_scale_convergence(tau, sin_dlon, cos_dlon);
+                let (lat, sin_dlon, cos_dlon, h_m) = utm_point(zone, x_e);
+                let kg = tm_scale_convergence(lat, sin_dlon, cos_dlon);
                 // N / (N + h) and M / (M + h) with N = a / w, M = a (1 - e^2) / w^3.
-                let sin2_lat = tau * tau / (1.0 + tau * tau);
-                let w = (1.0 - WGS84_E2 * sin2_lat).sqrt();
+                let w = (1.0 - WGS84_E2 * lat.sin * lat.sin).sqrt();
                 let de = WGS84_A / (WGS84_A + h_m * w);
                 let m_m = WGS84_A * (1.0 - WGS84_E2) / (w * w * w);
                 let dn = m_m / (m_m + h_m);
@@ -383,23 +382,25 @@ impl MapFrame {
     }
 }
 
-/// (tan(lat), sin(dlon), cos(dlon), h) of an ECEF point for UTM zone `zone`, dlon the longitude
-/// from the central meridian: the trig-free [`ecef_to_tan_lat_h`] plus a rotation of (x, y).
+/// (latitude functions, sin(dlon), cos(dlon), h) of an ECEF point for UTM zone `zone`, dlon
+/// the longitude from the central meridian: the trig-free [`ecef_to_lat_h`] plus a rotation of
+/// (x, y).
 #[inline]
-fn utm_point(zone: u8, x_e: &Vector3<f64>) -> (f64, f64, f64, f64) {
-    let p = x_e.x.hypot(x_e.y);
+fn utm_point(zone: u8, x_e: &Vector3<f64>) -> (Lat, f64, f64, f64) {
+    let p = (x_e.x * x_e.x + x_e.y * x_e.y).sqrt();
     if p < 1e-3 {
         // Within 1 mm of the polar axis: longitude undefined, any value will do.
         let g = ecef_to_geodetic(x_e);
         let (s, c) = (g.lon_rad - central_meridian_rad(zone)).sin_cos();
-        return (g.lat_rad.tan(), s, c, g.h_m);
+        return (Lat::from_rad(g.lat_rad), s, c, g.h_m);
     }
-    let (tau, h_m) = ecef_to_tan_lat_h(p, x_e.z);
+    let inv_p = 1.0 / p;
+    let (lat, h_m) = ecef_to_lat_h(p, inv_p, x_e.z);
     let (s0, c0) = central_meridian_sin_cos(zone);
     (
-        tau,
-        (x_e.y * c0 - x_e.x * s0) / p,
-        (x_e.x * c0 + x_e.y * s0) / p,
+        lat,
+        (x_e.y * c0 - x_e.x * s0) * inv_p,
+        (x_e.x * c0 + x_e.y * s0) * inv_p,
         h_m,
     )
 }
@@ -430,48 +431,81 @@ fn false_northing_m(north: bool) -> f64 {
     }
 }
 
-/// tan of the conformal latitude, tau' = tau sqrt(1+sigma^2) - sigma sqrt(1+tau^2), from
-/// tau = tan(lat) (Karney eqs. 7-9).
-#[inline]
-fn tau_prime(tau: f64) -> f64 {
-    let sec = (1.0 + tau * tau).sqrt();
-    let sin_lat = tau / sec;
-    // e atanh(e sin(lat)) = e^2 s sum_k (e^2 s^2)^k / (2k+1): with e^2 s^2 <= 0.0067 nine terms
-    // reach 1e-19 relative. sinh of it (<= 0.0068) by Taylor to x^7 (next term 4e-25).
-    let u = WGS84_E2 * sin_lat * sin_lat;
-    let series = [1.0, 3.0, 5.0, 7.0, 9.0, 11.0, 13.0, 15.0, 17.0]
-        .iter()
-        .rev()
-        .fold(0.0, |acc, d| acc * u + 1.0 / d);
-    let x = WGS84_E2 * sin_lat * series;
-    let x2 = x * x;
-    let sigma = x * (1.0 + x2 / 6.0 * (1.0 + x2 / 20.0 * (1.0 + x2 / 42.0)));
-    tau * (1.0 + sigma * sigma).sqrt() - sigma * sec
+/// tan, sec and sin of a latitude (the forms the projection works with).
+#[derive(Debug, Clone, Copy)]
+struct Lat {
+    tan: f64,
+    sec: f64,
+    sin: f64,
+    cos: f64,
 }
 
-/// ECEF to tan(geodetic latitude) and ellipsoidal height (m), from the distance from the polar
-/// axis `p_m` (> 0) and `z_m`. Newton's method on
-/// f(t) = p t - z - e^2 a t / sqrt(1 + (1 - e^2) t^2) from the h = 0 solution: no
-/// trigonometry, converged to 1e-15 relative in 2-3 steps for |h| < 1e5 m (checked against
-/// [`ecef_to_geodetic`] in the unit tests).
+impl Lat {
+    #[inline]
+    fn from_rad(lat_rad: f64) -> Self {
+        let (s, c) = lat_rad.sin_cos();
+        Lat {
+            tan: s / c,
+            sec: 1.0 / c,
+            sin: s,
+            cos: c,
+        }
+    }
+
+    #[inline]
+    fn from_tan(tan: f64) -> Self {
+        let sec = (1.0 + tan * tan).sqrt();
+        let cos = 1.0 / sec;
+        Lat {
+            tan,
+            sec,
+            sin: tan * cos,
+            cos,
+        }
+    }
+}
+
+/// tan of the conformal latitude, tau' = tau sqrt(1+sigma^2) - sigma sqrt(1+tau^2),
+/// sigma = sinh(e atanh(e sin(lat))) (Karney eqs. 7-9).
 #[inline]
-fn ecef_to_tan_lat_h(p_m: f64, z_m: f64) -> (f64, f64) {
-    let one_m_e2 = 1.0 - WGS84_E2;
-    let mut t = z_m / (p_m * one_m_e2);
+fn tau_prime(lat: Lat) -> f64 {
+    // x = e atanh(e s) = e^2 s sum_k u^k / (2k+1), u = e^2 s^2 <= 0.0067: terms k <= 6 leave
+    // e^2 u^7 / 15 < 3e-19 absolute in x; summed by Estrin's scheme (short dependency chain).
+    // sinh(x), x <= 0.0068, by Taylor to x^7 (next term 4e-25).
+    let u = WGS84_E2 * lat.sin * lat.sin;
+    let (u2, u4) = (u * u, u * u * u * u);
+    let series =
+        (1.0 + u / 3.0 + u2 * (1.0 / 5.0 + u / 7.0)) + u4 * (1.0 / 9.0 + u / 11.0 + u2 / 13.0);
+    let x = WGS84_E2 * lat.sin * series;
+    let x2 = x * x;
+    let sigma = x * (1.0 + x2 / 6.0 * (1.0 + x2 / 20.0 * (1.0 + x2 / 42.0)));
+    lat.tan * (1.0 + sigma * sigma).sqrt() - sigma * lat.sec
+}
+
+/// ECEF to geodetic latitude functions and ellipsoidal height (m), from the distance from the
+/// polar axis `p_m` (> 0) and `z_m`. Newton's method on t = tan(lat),
+/// f(t) = p t - z - e^2 a t / sqrt(1 + (1 - e^2) t^2), from the h = 0 solution, with no
+/// trigonometry. Newton's error contracts as e_{k+1} <= 0.01 e_k^2 (|f''/2f'| <= 1.5 e^2), so
+/// stopping once |dt| <= 1e-8 max(|t|, 1) leaves < 1e-18 rad: two steps for |h| < 1e5 m
+/// (checked against [`ecef_to_geodetic`] to 1e-14 rad and 1e-8 m in the unit tests).
+#[inline]
+fn ecef_to_lat_h(p_m: f64, inv_p: f64, z_m: f64) -> (Lat, f64) {
+    const ONE_M_E2: f64 = 1.0 - WGS84_E2;
+    const E2A: f64 = WGS84_E2 * WGS84_A;
+    let mut t = z_m * inv_p * (1.0 / ONE_M_E2);
     for _ in 0..8 {
-        let w2 = 1.0 + one_m_e2 * t * t;
-        let w = w2.sqrt();
-        let f = p_m * t - z_m - WGS84_E2 * WGS84_A * t / w;
-        let dt = f / (p_m - WGS84_E2 * WGS84_A / (w2 * w));
+        let inv_w = 1.0 / (1.0 + ONE_M_E2 * t * t).sqrt();
+        let f = p_m * t - z_m - E2A * t * inv_w;
+        let dt = f / (p_m - E2A * inv_w * inv_w * inv_w);
         t -= dt;
-        if dt.abs() <= 1e-15 * t.abs().max(1e-3) {
+        if dt.abs() <= 1e-8 * t.abs().max(1.0) {
             break;
         }
     }
-    let cos_lat = 1.0 / (1.0 + t * t).sqrt();
-    let sin_lat = t * cos_lat;
-    let h_m = p_m * cos_lat + z_m * sin_lat - WGS84_A * (1.0 - WGS84_E2 * sin_lat * sin_lat).sqrt();
-    (t, h_m)
+    let lat = Lat::from_tan(t);
+    // h = p cos + z sin - a sqrt(1 - e^2 sin^2) = (p + z t - a sqrt(1 + (1 - e^2) t^2)) / sec.
+    let h_m = (p_m + z_m * t - WGS84_A * (1.0 + ONE_M_E2 * t * t).sqrt()) * lat.cos;
+    (lat, h_m)
 }
 
 /// A point on the Gauss-Schreiber (conformal-sphere) transverse Mercator, zeta' = xi' + i eta'.
@@ -480,8 +514,10 @@ struct GaussSchreiber {
     taup: f64,
     /// sqrt(1 + tau'^2).
     sec_p: f64,
-    /// sqrt(tau'^2 + cos^2(dlon)).
-    r: f64,
+    /// 1 / sqrt(tau'^2 + cos^2(dlon)).
+    inv_r: f64,
+    /// 1 / (tau'^2 + cos^2(dlon)).
+    inv_r2: f64,
     /// sin(2 zeta').
     s2: Complex<f64>,
     /// cos(2 zeta').
@@ -492,32 +528,35 @@ struct GaussSchreiber {
 /// meridian (Karney eqs. 7-10), with the double-angle functions of zeta' obtained
 /// algebraically (no transcendental functions beyond those in [`tau_prime`]).
 #[inline]
-fn gauss_schreiber(tau: f64, sin_dlon: f64, cos_dlon: f64) -> GaussSchreiber {
-    let taup = tau_prime(tau);
+fn gauss_schreiber(lat: Lat, sin_dlon: f64, cos_dlon: f64) -> GaussSchreiber {
+    let taup = tau_prime(lat);
     let sec_p = (1.0 + taup * taup).sqrt();
-    let r2 = taup * taup + cos_dlon * cos_dlon;
+    let inv_r = 1.0 / (taup * taup + cos_dlon * cos_dlon).sqrt();
+    let inv_r2 = inv_r * inv_r;
     // sin(xi') = tau'/r, cos(xi') = cos(dlon)/r, sinh(eta') = sin(dlon)/r, cosh(eta') = sec'/r.
-    let sin2 = 2.0 * taup * cos_dlon / r2;
-    let cos2 = (cos_dlon * cos_dlon - taup * taup) / r2;
-    let sinh2 = 2.0 * sin_dlon * sec_p / r2;
-    let cosh2 = 1.0 + 2.0 * sin_dlon * sin_dlon / r2;
+    let sin2 = 2.0 * taup * cos_dlon * inv_r2;
+    let cos2 = (cos_dlon * cos_dlon - taup * taup) * inv_r2;
+    let sinh2 = 2.0 * sin_dlon * sec_p * inv_r2;
+    let cosh2 = 1.0 + 2.0 * sin_dlon * sin_dlon * inv_r2;
     GaussSchreiber {
         taup,
         sec_p,
-        r: r2.sqrt(),
+        inv_r,
+        inv_r2,
         s2: Complex::new(sin2 * cosh2, cos2 * sinh2),
         c2: Complex::new(cos2 * cosh2, -sin2 * sinh2),
     }
 }
 
-/// Forward TM: zeta = xi + i eta (northing and easting over k0 A) from tan(lat) and the
+/// Forward TM: zeta = xi + i eta (northing and easting over k0 A) from the latitude and the
 /// sine/cosine of the longitude from the central meridian (Karney eq. 11).
 #[inline]
-fn tm_zeta(tau: f64, sin_dlon: f64, cos_dlon: f64) -> Complex<f64> {
-    let gs = gauss_schreiber(tau, sin_dlon, cos_dlon);
+fn tm_zeta(lat: Lat, sin_dlon: f64, cos_dlon: f64) -> Complex<f64> {
+    let gs = gauss_schreiber(lat, sin_dlon, cos_dlon);
     let xip = gs.taup.atan2(cos_dlon);
-    // eta' = asinh(sin(dlon)/r) = ln((sin(dlon) + sec')/r), written for ln_1p.
-    let etap = ((sin_dlon + sin_dlon * sin_dlon / (gs.sec_p + gs.r)) / gs.r).ln_1p();
+    // eta' = asinh(x), x = sin(dlon)/r, = ln_1p(x + x^2 / (1 + sqrt(1 + x^2))), sqrt(1 + x^2) = sec'/r.
+    let x = sin_dlon * gs.inv_r;
+    let etap = (x + x * x / (1.0 + gs.sec_p * gs.inv_r)).ln_1p();
     Complex::new(xip, etap) + clenshaw_sin(&ALPHA, gs.s2, gs.c2)
 }
 
@@ -552,14 +591,12 @@ fn clenshaw_dcos(a: &[f64; 6], c2: Complex<f64>) -> Complex<f64> {
 /// sine/cosine of the longitude from the central meridian (Karney eqs. 12-13, 16-17, with the
 /// angles combined as unit complex numbers instead of atan2 and sin/cos).
 #[inline]
-fn tm_scale_convergence(tau: f64, sin_dlon: f64, cos_dlon: f64) -> Complex<f64> {
-    let gs = gauss_schreiber(tau, sin_dlon, cos_dlon);
-    let sec = (1.0 + tau * tau).sqrt();
-    let sin_lat = tau / sec;
+fn tm_scale_convergence(lat: Lat, sin_dlon: f64, cos_dlon: f64) -> Complex<f64> {
+    let gs = gauss_schreiber(lat, sin_dlon, cos_dlon);
     // Sphere: k' = sqrt(1 - e^2 sin^2 lat) sec(lat) / r; gamma' = arg(sec' cos + i tau' sin),
     // whose modulus is r.
     let k_gamma_sphere = Complex::new(gs.sec_p * cos_dlon, gs.taup * sin_dlon)
-        * ((1.0 - WGS84_E2 * sin_lat * sin_lat).sqrt() * sec / (gs.r * gs.r));
+        * ((1.0 - WGS84_E2 * lat.sin * lat.sin).sqrt() * lat.sec * gs.inv_r2);
     // d zeta / d zeta' = p - i q: scales by |.| and turns gamma by -arg(.).
     let w = Complex::new(1.0, 0.0) + clenshaw_dcos(&ALPHA, gs.c2);
     k_gamma_sphere * w.conj() * (UTM_K0 * RECT_A_M / WGS84_A)
@@ -576,7 +613,7 @@ fn tm_inverse(zeta: Complex<f64>) -> (f64, f64) {
     let one_m_e2 = 1.0 - WGS84_E2;
     let mut tau = taup / one_m_e2;
     for _ in 0..6 {
-        let taupi = tau_prime(tau);
+        let taupi = tau_prime(Lat::from_tan(tau));
         let dtau = (taup - taupi) * (1.0 + one_m_e2 * tau * tau)
             / (one_m_e2 * taupi.hypot(1.0) * tau.hypot(1.0));
         tau += dtau;
@@ -660,7 +697,9 @@ mod tests {
                     h_m: h,
                 };
                 let x = geodetic_to_ecef(g);
-                let (t, h_m) = ecef_to_tan_lat_h(x.x.hypot(x.y), x.z);
+                let p = x.x.hypot(x.y);
+                let (lat, h_m) = ecef_to_lat_h(p, 1.0 / p, x.z);
+                let t = lat.tan;
                 let r = ecef_to_geodetic(&x);
                 assert!((t.atan() - r.lat_rad).abs() < 1e-14, "{lat_deg} {h}");
                 assert!((h_m - r.h_m).abs() < 1e-8, "{lat_deg} {h} {h_m} {}", r.h_m);
@@ -676,7 +715,10 @@ mod tests {
             let (sec, e) = (tau.hypot(1.0), WGS84_E2.sqrt());
             let sigma = (e * (e * tau / sec).atanh()).sinh();
             let exact = tau * sigma.hypot(1.0) - sigma * sec;
-            assert!((tau_prime(tau) - exact).abs() <= 4.0 * f64::EPSILON * exact.abs().max(1.0));
+            assert!(
+                (tau_prime(Lat::from_tan(tau)) - exact).abs()
+                    <= 4.0 * f64::EPSILON * exact.abs().max(1.0)
+            );
         }
     }
 
