@@ -295,9 +295,8 @@ impl MapFrame {
     /// identify them (`CRS.from_wkt(w).to_epsg()` gives [`MapFrame::epsg`]; checked by
     /// `tests/oracle/make_geodesy_oracle.py --check`). The UTM WKT is horizontal; Z in the file
     /// is WGS84 ellipsoidal height. Local ENU is an engineering `LOCAL_CS` (local datum type
-    /// 32767, as PROJ writes it) with axes
-    /// East, North, Up (m) whose name and datum state the WGS84 origin in degrees
-    /// (9 decimals, < 0.1 mm) and metres; no EPSG code exists for it.
+    /// 32767, as PROJ writes it) with axes East, North, Up (m) whose name and datum state the
+    /// WGS84 origin in degrees (9 decimals, < 0.1 mm) and metres; it has no EPSG code.
     pub fn wkt(&self) -> String {
         const DATUM: &str = r#"DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]]"#;
         const METRE: &str = r#"UNIT["metre",1,AUTHORITY["EPSG","9001"]]"#;
