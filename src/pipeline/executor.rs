@@ -456,6 +456,12 @@ fn progress_bar(enabled: bool, total: u64) -> indicatif::ProgressBar {
     bar
 }
 
+/// A batch of chunk results, in input order.
+type Batch = Vec<(std::ops::Range<usize>, Result<ChunkOut>)>;
+
+/// Georeferences one profile file. Batches of chunks are computed in parallel on the pool
+/// while a writer thread absorbs the previous batch (counts, checks, LAS, hash), so writing
+/// overlaps computing; results are absorbed strictly in input order.
 #[allow(clippy::too_many_arguments)]
 fn process_file(
     g: &Georeferencer,
@@ -469,73 +475,129 @@ fn process_file(
     let n = file.len();
     let chunk = opts.chunk_returns.max(1);
     let batch = chunk * rayon::current_num_threads() * 2;
-    let mut hasher = Sha256::new();
-    hasher.update(file.header_bytes());
-    let mut counts = ReturnCounts::default();
-    let mut tracker = CounterTracker::default();
-    let mut span: Option<(f64, f64)> = None;
-    for batch_start in (0..n).step_by(batch) {
-        let batch_end = (batch_start + batch).min(n);
-        let ranges: Vec<_> = (batch_start..batch_end)
-            .step_by(chunk)
-            .map(|s| s..(s + chunk).min(batch_end))
-            .collect();
-        let layout = sink.layout();
-        let outs: Vec<Result<ChunkOut>> = ranges
-            .par_iter()
-            .map(|r| g.chunk(file, r.clone(), layout))
-            .collect();
-        for (r, out) in ranges.iter().zip(outs) {
-            let out = out.map_err(|e| {
-                let at = format!("records {}..{}", r.start, r.end);
-                Error::bad_record(file.path(), at, e.to_string())
-            })?;
-            tracker.absorb(file.path(), r.start, &out)?;
-            if strictness == Strictness::Fail {
-                if let Some((i, reason)) = out.first_reject {
-                    let msg = format!("{} (output.strictness = \"fail\")", reason.describe());
-                    return Err(Error::bad_record(file.path(), format!("record {i}"), msg));
+    let layout = sink.layout().clone();
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
+    let mut acc = FileAccumulator::new(file, strictness);
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(|| -> Result<()> {
+            for batch in rx {
+                for (r, out) in batch {
+                    acc.absorb(r, out, sink, bar)?;
                 }
             }
-            for (k, reason) in RejectReason::ALL.iter().enumerate() {
-                if out.counts[k] > 0 {
-                    *counts.rejected.entry(*reason).or_default() += out.counts[k];
-                }
+            Ok(())
+        });
+        for batch_start in (0..n).step_by(batch) {
+            let batch_end = (batch_start + batch).min(n);
+            let ranges: Vec<_> = (batch_start..batch_end)
+                .step_by(chunk)
+                .map(|s| s..(s + chunk).min(batch_end))
+                .collect();
+            let outs: Batch = ranges
+                .into_par_iter()
+                .map(|r| (r.clone(), g.chunk(file, r, &layout)))
+                .collect();
+            if tx.send(outs).is_err() {
+                break; // the writer stopped on an error, reported below
             }
-            counts.read += r.len() as u64;
-            counts.written += out.stats.count;
-            if let Some((a, b)) = out.time_span_s {
-                span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
-            }
-            sink.write(&out.records, &out.stats)?;
-            hasher.update(file.record_bytes(r.clone()));
-            file.release(r.clone());
-            bar.inc(r.len() as u64);
+        }
+        drop(tx);
+        writer.join().expect("writer thread panicked")
+    })?;
+    acc.finish(original, g.point_source_id)
+}
+
+/// What the writer side learns about one profile file.
+struct FileAccumulator<'f> {
+    file: &'f ProfileFile,
+    strictness: Strictness,
+    hasher: Sha256,
+    counts: ReturnCounts,
+    tracker: CounterTracker,
+    span: Option<(f64, f64)>,
+}
+
+impl<'f> FileAccumulator<'f> {
+    fn new(file: &'f ProfileFile, strictness: Strictness) -> Self {
+        let mut hasher = Sha256::new();
+        hasher.update(file.header_bytes());
+        FileAccumulator {
+            file,
+            strictness,
+            hasher,
+            counts: ReturnCounts::default(),
+            tracker: CounterTracker::default(),
+            span: None,
         }
     }
-    debug_assert_eq!(counts.read, counts.written + counts.rejected_total());
-    let digest = hasher.finalize();
-    let bytes = std::fs::metadata(file.path())
-        .map_err(|e| Error::io(file.path(), e))?
-        .len();
-    let mut record = FileRecord {
-        role: "profiles".into(),
-        path: file.path().into(),
-        bytes,
-        sha256: super::report::hex(&digest),
-    };
-    if original != file.path() {
-        record = FileRecord::of("profiles", original)?;
+
+    fn absorb(
+        &mut self,
+        r: std::ops::Range<usize>,
+        out: Result<ChunkOut>,
+        sink: &mut LasSink,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<()> {
+        let path = self.file.path();
+        let out = out.map_err(|e| {
+            Error::bad_record(
+                path,
+                format!("records {}..{}", r.start, r.end),
+                e.to_string(),
+            )
+        })?;
+        self.tracker.absorb(path, r.start, &out)?;
+        if self.strictness == Strictness::Fail {
+            if let Some((i, reason)) = out.first_reject {
+                let msg = format!("{} (output.strictness = \"fail\")", reason.describe());
+                return Err(Error::bad_record(path, format!("record {i}"), msg));
+            }
+        }
+        for (k, reason) in RejectReason::ALL.iter().enumerate() {
+            if out.counts[k] > 0 {
+                *self.counts.rejected.entry(*reason).or_default() += out.counts[k];
+            }
+        }
+        self.counts.read += r.len() as u64;
+        self.counts.written += out.stats.count;
+        if let Some((a, b)) = out.time_span_s {
+            self.span = Some(self.span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+        }
+        sink.write(&out.records, &out.stats)?;
+        self.hasher.update(self.file.record_bytes(r.clone()));
+        self.file.release(r.clone());
+        bar.inc(r.len() as u64);
+        Ok(())
     }
-    Ok(InputReport {
-        file: record,
-        point_source_id: g.point_source_id,
-        counts,
-        profile_range: tracker.range,
-        counter_jumps: tracker.jumps,
-        counter_jump_examples: tracker.examples,
-        time_span_s: span,
-    })
+
+    fn finish(self, original: &Path, point_source_id: u16) -> Result<InputReport> {
+        let c = self.counts;
+        debug_assert_eq!(c.read, c.written + c.rejected_total());
+        let path = self.file.path();
+        let record = if original != path {
+            FileRecord::of("profiles", original)?
+        } else {
+            let bytes = std::fs::metadata(path)
+                .map_err(|e| Error::io(path, e))?
+                .len();
+            let sha256 = super::report::hex(&self.hasher.finalize());
+            FileRecord {
+                role: "profiles".into(),
+                path: path.into(),
+                bytes,
+                sha256,
+            }
+        };
+        Ok(InputReport {
+            file: record,
+            point_source_id,
+            counts: c,
+            profile_range: self.tracker.range,
+            counter_jumps: self.tracker.jumps,
+            counter_jump_examples: self.tracker.examples,
+            time_span_s: self.span,
+        })
+    }
 }
 
 /// Profile-counter continuity across chunks.
