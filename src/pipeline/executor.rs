@@ -5,7 +5,7 @@ use super::config::{FrameConfig, LoadedPipeline, Strictness, TimeModel};
 use super::report::{
     FileRecord, InputReport, OutputReport, RejectReason, ReturnCounts, RunReport, StageTiming,
 };
-use super::sink::{LasSink, SinkSettings};
+use super::sink::{ExtraSlots, LasSink, SinkSettings};
 use crate::geo::local::LocalProjection;
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::wrap_pi;
@@ -55,7 +55,7 @@ struct Georeferencer<'a> {
     max_range_m: f64,
     frame: MapFrame,
     point_source_id: u16,
-    range_dimension: bool,
+    slots: ExtraSlots,
 }
 
 /// The result of one chunk of returns: its LAS records, already encoded.
@@ -140,8 +140,8 @@ impl Georeferencer<'_> {
             point_source_id: self.point_source_id,
             ..LasPoint::default()
         };
-        if self.range_dimension {
-            p.extra[0] = r.range_m;
+        if let Some(k) = self.slots.range {
+            p.extra[k] = r.range_m;
         }
         Ok((p, t))
     }
@@ -200,7 +200,10 @@ impl Georeferencer<'_> {
             prev = Some(r.profile);
             out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
             match self.point(&r, &mut cursor, &mut local) {
-                Ok((p, t)) => {
+                Ok((mut p, t)) => {
+                    if let Some(k) = self.slots.return_index {
+                        p.extra[k] = i as f64;
+                    }
                     batch.push(p);
                     if batch.len() == ENCODE_BATCH {
                         encode_into(&mut batch, layout, &mut scratch, &mut out)?;
@@ -437,7 +440,7 @@ fn georeferencer<'a>(
         max_range_m: s.max_range_m,
         frame: *frame,
         point_source_id,
-        range_dimension: c.output.range_dimension,
+        slots: ExtraSlots::for_config(c).0,
     })
 }
 
