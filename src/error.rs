@@ -65,11 +65,17 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 impl Error {
     /// An [`Error::Io`] for `path`.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io {
+            path: path.into(),
+            source,
+        }
     }
     /// An [`Error::BadFile`] for `path`.
     pub fn bad_file(path: impl Into<PathBuf>, problem: impl Into<String>) -> Self {
-        Error::BadFile { path: path.into(), problem: problem.into() }
+        Error::BadFile {
+            path: path.into(),
+            problem: problem.into(),
+        }
     }
     /// An [`Error::BadRecord`] for `path` at `at` ("record N" or "line N").
     pub fn bad_record(
@@ -77,7 +83,11 @@ impl Error {
         at: impl Into<String>,
         problem: impl Into<String>,
     ) -> Self {
-        Error::BadRecord { path: path.into(), at: at.into(), problem: problem.into() }
+        Error::BadRecord {
+            path: path.into(),
+            at: at.into(),
+            problem: problem.into(),
+        }
     }
     /// An [`Error::Config`].
     pub fn config(
@@ -85,6 +95,10 @@ impl Error {
         key: impl Into<String>,
         problem: impl Into<String>,
     ) -> Self {
-        Error::Config { source_name: source_name.into(), key: key.into(), problem: problem.into() }
+        Error::Config {
+            source_name: source_name.into(),
+            key: key.into(),
+            problem: problem.into(),
+        }
     }
 }

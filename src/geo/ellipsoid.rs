@@ -64,8 +64,16 @@ pub fn ecef_to_geodetic(x_e: &Vector3<f64>) -> Geodetic {
     let lon = y.atan2(x);
     let p = x.hypot(y);
     if p < 1e-9 {
-        let lat = if z >= 0.0 { std::f64::consts::FRAC_PI_2 } else { -std::f64::consts::FRAC_PI_2 };
-        return Geodetic { lat_rad: lat, lon_rad: lon, h_m: z.abs() - WGS84_B };
+        let lat = if z >= 0.0 {
+            std::f64::consts::FRAC_PI_2
+        } else {
+            -std::f64::consts::FRAC_PI_2
+        };
+        return Geodetic {
+            lat_rad: lat,
+            lon_rad: lon,
+            h_m: z.abs() - WGS84_B,
+        };
     }
     // Bowring (1976) parametric-latitude start.
     let ep2 = WGS84_E2 / (1.0 - WGS84_E2);
@@ -87,7 +95,11 @@ pub fn ecef_to_geodetic(x_e: &Vector3<f64>) -> Geodetic {
     let n = WGS84_A / (1.0 - WGS84_E2 * s * s).sqrt();
     // Height formula stable at all latitudes.
     let h = p * c + z * s - WGS84_A * WGS84_A / n;
-    Geodetic { lat_rad: lat, lon_rad: lon, h_m: h }
+    Geodetic {
+        lat_rad: lat,
+        lon_rad: lon,
+        h_m: h,
+    }
 }
 
 /// Rotation from local North-East-Down `n` at (lat, lon) to ECEF `e`: `x_e = R_n^e x_n` (SPEC 3).
@@ -95,7 +107,17 @@ pub fn ecef_to_geodetic(x_e: &Vector3<f64>) -> Geodetic {
 pub fn r_n_to_e(lat_rad: f64, lon_rad: f64) -> Matrix3<f64> {
     let (sl, cl) = lat_rad.sin_cos();
     let (so, co) = lon_rad.sin_cos();
-    Matrix3::new(-sl * co, -so, -cl * co, -sl * so, co, -cl * so, cl, 0.0, -sl)
+    Matrix3::new(
+        -sl * co,
+        -so,
+        -cl * co,
+        -sl * so,
+        co,
+        -cl * so,
+        cl,
+        0.0,
+        -sl,
+    )
 }
 
 /// Rotation from local East-North-Up at (lat, lon) to ECEF: `x_e = R_enu^e x_enu`.
@@ -121,7 +143,10 @@ mod tests {
                         h_m: h,
                     };
                     let back = ecef_to_geodetic(&geodetic_to_ecef(g));
-                    assert!((back.lat_rad - g.lat_rad).abs() < 1e-12, "{lat_deg} {lon_deg} {h}");
+                    assert!(
+                        (back.lat_rad - g.lat_rad).abs() < 1e-12,
+                        "{lat_deg} {lon_deg} {h}"
+                    );
                     let dlon = (back.lon_rad - g.lon_rad).sin().abs();
                     assert!(dlon < 1e-12);
                     assert!((back.h_m - h).abs() < 1e-7, "{lat_deg} {h} {}", back.h_m);
