@@ -17,8 +17,11 @@
 //! fit all returns, then repeat: scale `s = 1.4826 * median|r_i - median r|` (the MAD, a
 //! consistent sigma for Gaussian residuals that ignores up to half the returns being off the
 //! sphere), keep returns with `|r_i| <= k s` (`k` = [`ROBUST_CUT_SIGMAS`]), refit the kept
-//! returns from the current centre, until the kept set stops changing. The covariance is that of
-//! the final plain fit on the kept returns.
+//! returns from the current centre (after 3 rounds a rejected return stays rejected, so the kept
+//! set cannot cycle), until the kept set stops changing or the centre moves by less
+//! than 5 % of its own sigma (returns at the threshold may otherwise flip in and out forever;
+//! the last move is then far below the statistical error).
+//! The covariance is that of the final plain fit on the kept returns.
 
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Matrix4, Vector3, Vector4};
@@ -33,7 +36,10 @@ const STEP_TOL_M: f64 = 1e-10;
 /// Gauss-Newton iteration limit (a failure to converge is reported, not hidden).
 const MAX_ITERATIONS: usize = 50;
 /// Robust rounds limit.
-const MAX_ROBUST_ROUNDS: usize = 20;
+const MAX_ROBUST_ROUNDS: usize = 50;
+/// Rounds in which a rejected return may come back; later rounds only reject, so the kept set
+/// cannot cycle.
+const FREE_ROBUST_ROUNDS: usize = 3;
 /// Iterations of the start fit of the robust scheme.
 pub const ROBUST_START_ITERATIONS: usize = 10;
 
@@ -119,7 +125,10 @@ pub fn fit_sphere_robust(points: &[Vector3<f64>], radius: SphereRadius) -> Resul
             .collect();
         let scale = mad_sigma(&res);
         let cut = ROBUST_CUT_SIGMAS * scale;
-        let new_kept: Vec<bool> = res.iter().map(|r| r.abs() <= cut).collect();
+        let mut new_kept: Vec<bool> = res.iter().map(|r| r.abs() <= cut).collect();
+        if round >= FREE_ROBUST_ROUNDS {
+            new_kept.iter_mut().zip(&kept).for_each(|(n, k)| *n &= *k);
+        }
         if round > 0 && new_kept == kept {
             fit.n_rejected = points.len() - fit.n_used;
             return Ok(fit);
@@ -132,7 +141,13 @@ pub fn fit_sphere_robust(points: &[Vector3<f64>], radius: SphereRadius) -> Resul
             .map(|(p, _)| *p)
             .collect();
         check_count(inliers.len())?;
-        fit = fit_from(&inliers, radius, fit.centre_m)?;
+        let previous = fit.centre_m;
+        fit = fit_from(&inliers, radius, previous)?;
+        let moved = (fit.centre_m - previous).norm();
+        if round > 0 && moved < 0.05 * fit.cov_centre_m2.trace().sqrt() {
+            fit.n_rejected = points.len() - fit.n_used;
+            return Ok(fit);
+        }
     }
     Err(Error::Numerical {
         what: "robust sphere fit".into(),
