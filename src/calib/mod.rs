@@ -5,9 +5,13 @@
 //! `R_s^b = Rz(bz) Ry(by) Rx(bx)`; beam `u_s(alpha, beta)`. The user guide, file formats and the
 //! mapping of the papers' conventions are in `docs/calibration.md`.
 
+pub mod boresight;
 pub mod files;
 pub mod latency;
 pub mod sim_table;
+pub mod sim_tripod;
 pub mod sphere;
+pub mod tripod;
 
+pub use boresight::{run_boresight_calibration, BoresightReport};
 pub use latency::{run_latency_calibration, LatencyReport};
