@@ -490,7 +490,7 @@ impl BoresightConfig {
             ));
         }
         let axis = Vector3::from(self.tripod.axis_n);
-        if !(axis.norm() > 0.0) {
+        if !super::positive(axis.norm()) {
             return Err(Error::config(src, "tripod.axis_n", "must be non-zero"));
         }
         let [bx, by, bz] = self.scanner.nominal_boresight_deg.map(f64::to_radians);
@@ -501,6 +501,9 @@ impl BoresightConfig {
         })
     }
 }
+
+/// Centre and sigma (m) of legs 1, 2, 3 at one site, as read.
+type SiteLegs = [Option<(Vector2<f64>, f64)>; 3];
 
 /// Reads the ellipse centres and site attitudes into sites (sorted by id). Each site must have
 /// exactly legs 1, 2 and 3 (a cut that misses a leg is an error naming the site).
@@ -513,7 +516,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
         t.column("z_s_m")?,
         t.column("sigma_m")?,
     );
-    let mut legs: BTreeMap<u64, [Option<(Vector2<f64>, f64)>; 3]> = BTreeMap::new();
+    let mut legs: BTreeMap<u64, SiteLegs> = BTreeMap::new();
     for (line, f) in t.rows() {
         let site = t.u64(line, f, cs)?;
         let leg = t.u64(line, f, cl)?;
@@ -521,7 +524,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
             return Err(t.bad(line, format!("leg {leg}: legs are numbered 1, 2, 3")));
         }
         let sigma = t.f64(line, f, csig)?;
-        if !(sigma > 0.0) {
+        if !super::positive(sigma) {
             return Err(t.bad(line, "sigma_m must be > 0"));
         }
         let slot = &mut legs.entry(site).or_default()[leg as usize - 1];

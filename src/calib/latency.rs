@@ -468,7 +468,7 @@ impl LatencyConfig {
     /// The [`LatencySetup`] in SI, validated; `src` names the config in errors.
     pub fn setup(&self, src: &str) -> Result<LatencySetup> {
         let axis = Vector3::from(self.table.axis_n);
-        if !(axis.norm() > 1e-9) {
+        if !super::positive(axis.norm()) {
             return Err(Error::config(
                 src,
                 "table.axis_n",
@@ -480,7 +480,7 @@ impl LatencyConfig {
             Some(_) => return Err(Error::config(src, "sphere.radius_m", "must be > 0")),
             None => SphereRadius::Free,
         };
-        if !(self.sphere.gate_m > 0.0) {
+        if !super::positive(self.sphere.gate_m) {
             return Err(Error::config(src, "sphere.gate_m", "must be > 0"));
         }
         let [bx, by, bz] = self.scanner.boresight_deg.map(f64::to_radians);

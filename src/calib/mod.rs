@@ -13,5 +13,10 @@ pub mod sim_tripod;
 pub mod sphere;
 pub mod tripod;
 
+/// `v > 0` and not NaN: the validity test for sizes, sigmas and rates read from configs.
+pub(crate) fn positive(v: f64) -> bool {
+    v > 0.0
+}
+
 pub use boresight::{run_boresight_calibration, BoresightReport};
 pub use latency::{run_latency_calibration, LatencyReport};

@@ -123,7 +123,9 @@ struct Geometry {
 impl TableScenario {
     fn check(&self) -> Result<()> {
         let bad = |k: &str, p: &str| Err(Error::config("table scenario", k, p));
-        if self.speeds_deg_s.iter().any(|s| !(s.abs() > 0.0)) || self.speeds_deg_s.is_empty() {
+        if self.speeds_deg_s.iter().any(|s| !super::positive(s.abs()))
+            || self.speeds_deg_s.is_empty()
+        {
             return bad("speeds_deg_s", "need >= 1 speed, none zero");
         }
         if self.passes_per_direction == 0 {
@@ -137,11 +139,11 @@ impl TableScenario {
             ("imu_rate_hz", self.imu_rate_hz),
             ("sweep_half_angle_deg", self.sweep_half_angle_deg),
         ] {
-            if !(v > 0.0) {
+            if !super::positive(v) {
                 return bad(k, "must be > 0");
             }
         }
-        if !(Vector3::from(self.table_axis_n).norm() > 0.0) {
+        if !super::positive(Vector3::from(self.table_axis_n).norm()) {
             return bad("table_axis_n", "must be non-zero");
         }
         Ok(())

@@ -149,7 +149,7 @@ pub fn solve_site(
             let legs = leg_directions_s(c, &apex);
             let mean_n = r_s_to_n_prior * (legs[0] + legs[1] + legs[2]);
             let score = mean_n.normalize().dot(axis_n);
-            if best.as_ref().is_none_or(|(s, _)| score > *s) {
+            if best.as_ref().map_or(true, |(s, _)| score > *s) {
                 best = Some((
                     score,
                     TripodSolution {
@@ -198,8 +198,8 @@ pub fn leg_covariance_s(
                 let mut cp = *c;
                 cp[leg][axis] += sgn * h;
                 let u = legs_near(&cp, cos_leg, sol)?;
-                for i in 0..3 {
-                    col.fixed_rows_mut::<3>(3 * i).axpy(w, &u[i], 1.0);
+                for (i, ui) in u.iter().enumerate() {
+                    col.fixed_rows_mut::<3>(3 * i).axpy(w, ui, 1.0);
                 }
             }
             cov += col * col.transpose() * sigma_m[leg] * sigma_m[leg];
