@@ -148,3 +148,27 @@ fn zero_table_speed_and_too_few_returns_are_clear_errors() {
         .to_string();
     assert!(e.contains("18 deg/s") && e.contains("at least 20"), "{e}");
 }
+
+/// A latency already applied to the stream and a free sphere radius: the total is recovered.
+#[test]
+fn applied_latency_and_free_radius() {
+    let sc = TableScenario {
+        seed: 3,
+        speeds_deg_s: vec![10.0, 18.0],
+        ..TableScenario::default()
+    };
+    let data = simulate_table(&sc).unwrap();
+    let mut setup = sc.calibration_setup();
+    setup.applied_latency_s = 0.0035;
+    setup.sphere_radius = kinescan::calib::sphere::SphereRadius::Free;
+    // With a free radius the gate is the whole distance from the approximate centre.
+    setup.sphere_gate_n_m = setup.sphere_gate_n_m.map(|(c, _)| (c, 0.15));
+    let r = estimate_latency(&data, &setup).unwrap();
+    print_table(&r);
+    // 4 sigma: chance exceedance p = 6e-5.
+    assert!((r.latency_s - sc.latency_ms * 1e-3).abs() < 4.0 * r.sigma_latency_s);
+    assert!(r
+        .speeds
+        .iter()
+        .all(|s| (s.radius_plus_m - 0.1).abs() < 1e-3));
+}

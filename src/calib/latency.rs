@@ -89,7 +89,8 @@ pub struct LatencySetup {
     /// Latency already applied to the attitude stream (s); the result is this plus the residual.
     pub applied_latency_s: f64,
     /// Approximate sphere centre in `n` (m) and gate (m): returns farther than `radius + gate`
-    /// from it are not sphere returns. `None`: every return is a sphere return.
+    /// (known radius) or `gate` (free radius) from it are not sphere returns. `None`: every
+    /// return is a sphere return.
     pub sphere_gate_n_m: Option<(Vector3<f64>, f64)>,
 }
 
@@ -434,7 +435,8 @@ pub struct SphereConfig {
     pub radius_m: Option<f64>,
     /// Approximate centre in NED about the table centre (m); omit to use every return.
     pub approx_centre_n_m: Option<[f64; 3]>,
-    /// Returns farther than radius + gate from the approximate centre are ignored (m).
+    /// Returns farther than radius + gate (known radius) or gate (free radius) from the
+    /// approximate centre are ignored (m).
     #[serde(default = "default_gate")]
     pub gate_m: f64,
 }
