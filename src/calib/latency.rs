@@ -41,7 +41,7 @@ pub struct TimedReturn {
 /// One pass of the table at constant rate, from the table's log.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TablePass {
-    /// Start and end (GPS s) of the constant-rate part.
+    /// Start (GPS s) of the constant-rate part.
     pub t_start_s: f64,
     /// End of the pass (GPS s).
     pub t_end_s: f64,
@@ -99,7 +99,7 @@ pub struct LatencySetup {
 pub struct SpeedResult {
     /// Table speed |omega| (deg/s).
     pub rate_deg_s: f64,
-    /// Returns used / rejected as off the sphere, + direction.
+    /// Returns used in the final sphere fit, + direction.
     pub n_used_plus: usize,
     /// Rejected returns, + direction.
     pub n_rejected_plus: usize,
@@ -147,8 +147,7 @@ pub struct LatencyReport {
     pub dof: usize,
     /// Per-speed results, increasing speed.
     pub speeds: Vec<SpeedResult>,
-    /// Returns read / used as sphere candidates / outside any pass or the attitude stream /
-    /// outside the sphere gate / missing (range 0).
+    /// Returns read (missing returns, range 0, are not counted).
     pub n_returns: usize,
     /// Returns outside any table pass or attitude coverage.
     pub n_outside_passes: usize,
