@@ -6,6 +6,7 @@
 //! Conventions (frames, signs, time model) follow `../shared/SPEC.md`, restated in `docs/`.
 #![forbid(unsafe_op_in_unsafe_fn)]
 
+pub mod calib;
 pub mod error;
 pub mod geo;
 pub mod io;
