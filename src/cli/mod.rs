@@ -1,6 +1,7 @@
 //! Command-line parsing and dispatch. `anyhow` lives here only; the library returns
 //! `kinescan::Error`.
 
+mod calib_cmds;
 mod pipeline_cmds;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,7 @@ enum Command {
     Validate(pipeline_cmds::ValidateArgs),
     Import(pipeline_cmds::ImportArgs),
     Info(pipeline_cmds::InfoArgs),
+    Calibrate(calib_cmds::CalibrateArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
@@ -33,6 +35,7 @@ pub fn run() -> ExitCode {
         Command::Validate(a) => pipeline_cmds::validate(a),
         Command::Import(a) => pipeline_cmds::import(a, cli.quiet),
         Command::Info(a) => pipeline_cmds::info(a),
+        Command::Calibrate(a) => calib_cmds::calibrate(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
