@@ -183,7 +183,6 @@ impl Georeferencer<'_> {
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
         let mut local = None;
         let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
-        let mut scratch = Vec::new();
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {
@@ -206,7 +205,7 @@ impl Georeferencer<'_> {
                     }
                     batch.push(p);
                     if batch.len() == ENCODE_BATCH {
-                        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+                        encode_into(&mut batch, layout, &mut out)?;
                     }
                     t_min = t_min.min(t);
                     t_max = t_max.max(t);
@@ -217,7 +216,7 @@ impl Georeferencer<'_> {
                 }
             }
         }
-        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+        encode_into(&mut batch, layout, &mut out)?;
         if t_min <= t_max {
             out.time_span_s = Some((t_min, t_max));
         }
@@ -233,20 +232,12 @@ const ENCODE_BATCH: usize = 1024;
 const RECENTRE_M: f64 = 100.0;
 
 /// Encodes and empties `batch`, appending its records and stats to `out`.
-fn encode_into(
-    batch: &mut Vec<LasPoint>,
-    layout: &PointLayout,
-    scratch: &mut Vec<u8>,
-    out: &mut ChunkOut,
-) -> Result<()> {
-    let stats = encode_points(batch, layout, scratch)?;
-    out.records.extend_from_slice(scratch);
+fn encode_into(batch: &mut Vec<LasPoint>, layout: &PointLayout, out: &mut ChunkOut) -> Result<()> {
+    let stats = encode_points(batch, layout, &mut out.records)?;
     out.stats.merge(&stats);
     batch.clear();
     Ok(())
 }
-
-impl Georeferencer<'_> {}
 
 /// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
 pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
