@@ -1,7 +1,10 @@
 //! File formats that cross the project's boundary (SPEC 6 and 7).
 
 pub mod atomic;
+mod csv_text;
 pub mod mapped;
+pub mod patches;
+pub mod points;
 pub mod profiles;
 pub mod sbet;
 pub mod smrmsg;
