@@ -14,3 +14,4 @@ pub use error::{Error, Result};
 pub mod georef;
 pub mod timing;
 pub mod trajectory;
+pub mod sim;
