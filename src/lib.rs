@@ -9,9 +9,11 @@
 pub mod error;
 pub mod geo;
 pub mod io;
+pub mod plot;
 
 pub use error::{Error, Result};
 pub mod georef;
+pub mod pipeline;
 pub mod timing;
 pub mod trajectory;
 pub mod sim;

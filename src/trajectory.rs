@@ -194,7 +194,7 @@ fn locate(len: usize, time: impl Fn(usize) -> f64, hint: usize, t: f64) -> Optio
         return None;
     }
     for i in [hint, hint.wrapping_add(1)] {
-        if i + 1 < len && time(i) <= t && t <= time(i + 1) {
+        if i < len - 1 && time(i) <= t && t <= time(i + 1) {
             return Some(i);
         }
     }

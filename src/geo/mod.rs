@@ -4,4 +4,6 @@
 //! down); `s` scanner. All angles in radians, lengths in metres.
 
 pub mod ellipsoid;
+pub mod local;
+pub mod projection;
 pub mod rotations;

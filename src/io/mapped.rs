@@ -90,6 +90,24 @@ impl MappedRecords {
     }
 }
 
+impl MappedRecords {
+    /// Tells the kernel the pages of records `range` are no longer needed by this process, so
+    /// resident memory stays flat however large the file (they are re-read if touched again).
+    pub fn release(&self, range: std::ops::Range<usize>) {
+        let Some(map) = self.map.as_ref() else { return };
+        const PAGE: usize = 4096;
+        let start = (self.header_bytes + range.start * self.record_bytes) / PAGE * PAGE;
+        let end = (self.header_bytes + range.end * self.record_bytes).min(map.len());
+        if end > start {
+            // SAFETY: the map is private and read-only; dropping its pages only makes later
+            // reads fault them in again from the unchanged file.
+            let _ = unsafe {
+                map.unchecked_advise_range(memmap2::UncheckedAdvice::DontNeed, start, end - start)
+            };
+        }
+    }
+}
+
 /// Little-endian f64 at byte offset `at` of `bytes`.
 #[inline]
 pub fn f64_le(bytes: &[u8], at: usize) -> f64 {

@@ -2,9 +2,12 @@
 
 pub mod atomic;
 mod csv_text;
+pub mod info;
+pub mod las;
 pub mod mapped;
 pub mod patches;
 pub mod points;
 pub mod profiles;
+pub mod profiles_csv;
 pub mod sbet;
 pub mod smrmsg;

@@ -144,6 +144,20 @@ mod tests {
     }
 
     #[test]
+    fn accepts_bom_crlf_blank_lines_and_spaces() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cp.csv");
+        let text = "\u{feff}id, lat_deg,lon_deg,h_m,sigma_m\r\n\r\nA, 45.5 ,-73.25,12,0.02\r\n";
+        std::fs::write(&path, text).unwrap();
+        let p = read_control_points(&path).unwrap();
+        assert_eq!(p.len(), 1);
+        assert_eq!(
+            (p[0].id.as_str(), p[0].lat_rad),
+            ("A", 45.5f64.to_radians())
+        );
+    }
+
+    #[test]
     fn refuses_bad_points_with_line_numbers() {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("cp.csv");

@@ -126,10 +126,49 @@ impl ProfileFile {
         self.columns
     }
 
+    /// The raw header bytes (for hashing the file as it is read).
+    pub fn header_bytes(&self) -> &[u8] {
+        self.records.header()
+    }
+
+    /// The raw bytes of records `range` (for hashing the file as it is read).
+    pub fn record_bytes(&self, range: std::ops::Range<usize>) -> &[u8] {
+        self.records.records(range)
+    }
+
+    /// Releases the resident pages of records `range` (see [`MappedRecords::release`]).
+    pub fn release(&self, range: std::ops::Range<usize>) {
+        self.records.release(range)
+    }
+
     /// Return `i`.
     #[inline]
     pub fn get(&self, i: usize) -> RawReturn {
         decode(self.records.record(i))
+    }
+
+    /// Return `i`, refused (naming the file and the 0-based record) when a value is not finite
+    /// or the range is negative.
+    pub fn get_checked(&self, i: usize) -> Result<RawReturn> {
+        let r = self.get(i);
+        let fields = [
+            ("beta_rad", r.beta_rad),
+            ("range_m", r.range_m),
+            ("alpha_rad", r.alpha_rad),
+            ("time_s", r.time_s),
+        ];
+        let problem = if let Some((name, v)) = fields.iter().find(|(_, v)| !v.is_finite()) {
+            format!("{name} is {v} (not finite)")
+        } else if r.range_m < 0.0 {
+            format!("range_m {} is negative", r.range_m)
+        } else {
+            return Ok(r);
+        };
+        Err(Error::bad_record(
+            self.path(),
+            format!("record {i}"),
+            problem,
+        ))
     }
 }
 

@@ -1,0 +1,44 @@
+//! Command-line parsing and dispatch. `anyhow` lives here only; the library returns
+//! `kinescan::Error`.
+
+mod pipeline_cmds;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// kinescan: georeferenced, uncertainty-tagged LAS from mobile laser scanning.
+#[derive(Parser)]
+#[command(name = "kinescan", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+    /// No progress bars or summaries (errors still go to stderr).
+    #[arg(long, short, global = true)]
+    quiet: bool,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    Run(pipeline_cmds::RunArgs),
+    Validate(pipeline_cmds::ValidateArgs),
+    Import(pipeline_cmds::ImportArgs),
+    Info(pipeline_cmds::InfoArgs),
+}
+
+/// Parses the command line, runs the command, maps errors to a message and exit code 1.
+pub fn run() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Run(a) => pipeline_cmds::run(a, cli.quiet),
+        Command::Validate(a) => pipeline_cmds::validate(a),
+        Command::Import(a) => pipeline_cmds::import(a, cli.quiet),
+        Command::Info(a) => pipeline_cmds::info(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

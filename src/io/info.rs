@@ -1,0 +1,442 @@
+//! `kinescan info`: recognise an input file and summarise it (counts, time span, rate, gaps,
+//! ranges), streaming so multi-GB files cost one or two passes and bounded memory.
+//!
+//! Recognition: the `KSPROF01` magic means binary profiles; a text file whose first line is
+//! a kinescan CSV header means CSV profiles, control points or patches; otherwise the file is
+//! taken as SBET (136-byte records) or SMRMSG (80-byte records) from its name (`.sbet`,
+//! `sbet*`, `.smrmsg`, `smrmsg*`) or, failing that, from its size and the plausibility of its
+//! first records. When both readings remain possible the file is refused as ambiguous.
+
+use super::mapped::f64_le;
+use super::patches::{read_patches, PATCHES_HEADER};
+use super::points::read_control_points;
+use super::profiles::{ProfileColumns, ProfileFile, RawReturn, PROFILE_MAGIC};
+use super::profiles_csv::{yes_no, ProfileCsvReader, ProfileTally};
+use super::sbet::{SbetFile, SBET_RECORD_BYTES};
+use super::smrmsg::{SmrmsgFile, SMRMSG_RECORD_BYTES};
+use crate::{Error, Result};
+use std::fmt;
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
+/// A gap counts when an interval exceeds this multiple of the median interval.
+pub const GAP_FACTOR: f64 = 1.5;
+/// How many of the largest gaps are listed.
+pub const LISTED_GAPS: usize = 5;
+/// The median interval is taken over at most this many evenly spread intervals.
+const MEDIAN_SAMPLE: usize = 200_000;
+
+/// What kind of file was recognised.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FileKind {
+    /// Applanix SBET trajectory.
+    Sbet,
+    /// Applanix SMRMSG accuracy.
+    Smrmsg,
+    /// kinescan binary profiles.
+    ProfilesBinary,
+    /// CSV profiles.
+    ProfilesCsv,
+    /// Control / sync points CSV.
+    ControlPoints,
+    /// Reference planar patches CSV.
+    Patches,
+}
+
+/// One time gap: an interval longer than [`GAP_FACTOR`] times the median.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Gap {
+    /// Time of the record before the gap (s).
+    pub after_s: f64,
+    /// Length of the interval (s).
+    pub interval_s: f64,
+}
+
+/// Time coverage of a time-series file (times in the file's own time scale, s).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TimeInfo {
+    /// First time (s).
+    pub start_s: f64,
+    /// Last time (s).
+    pub end_s: f64,
+    /// end - start (s).
+    pub span_s: f64,
+    /// Median record interval (s); 0 for a single record.
+    pub median_interval_s: f64,
+    /// 1 / median interval (Hz); 0 for a single record.
+    pub median_rate_hz: f64,
+    /// Intervals longer than 1.5 x the median.
+    pub gap_count: u64,
+    /// The largest gaps, longest first.
+    pub largest_gaps: Vec<Gap>,
+}
+
+/// Ranges over an SBET trajectory.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SbetRanges {
+    /// Latitude min, max (deg).
+    pub lat_deg: (f64, f64),
+    /// Longitude min, max (deg).
+    pub lon_deg: (f64, f64),
+    /// Ellipsoidal height min, max (m).
+    pub h_m: (f64, f64),
+    /// 3D speed |v| min, max (m/s).
+    pub speed_mps: (f64, f64),
+}
+
+/// Summary of a profile source.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ProfileInfo {
+    /// Optional columns present.
+    pub columns: ProfileColumns,
+    /// Counts, counter range, jumps and wraps, beta range.
+    pub tally: ProfileTally,
+    /// Hardware time tag range (s), when the time column is present.
+    pub time_range_s: Option<(f64, f64)>,
+}
+
+/// What `kinescan info` reports about one file.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct FileInfo {
+    /// The file.
+    pub path: String,
+    /// Recognised kind.
+    pub kind: FileKind,
+    /// Size (bytes).
+    pub size_bytes: u64,
+    /// Records (binary), returns (profiles) or data lines (points, patches).
+    pub records: u64,
+    /// Time coverage (SBET, SMRMSG).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time: Option<TimeInfo>,
+    /// Position and speed ranges (SBET).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sbet: Option<SbetRanges>,
+    /// Profile summary (binary or CSV profiles).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub profiles: Option<ProfileInfo>,
+}
+
+/// Recognises `path` and summarises it; the file is fully validated by its reader first.
+pub fn describe(path: &Path) -> Result<FileInfo> {
+    let size_bytes = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    let kind = detect(path, size_bytes)?;
+    let mut info = FileInfo {
+        path: path.display().to_string(),
+        kind,
+        size_bytes,
+        records: 0,
+        time: None,
+        sbet: None,
+        profiles: None,
+    };
+    match kind {
+        FileKind::Sbet => {
+            let f = SbetFile::open(path)?;
+            info.records = f.len() as u64;
+            info.time = Some(time_info(f.len(), |i| f.time_s(i)));
+            info.sbet = Some(sbet_ranges(&f));
+        }
+        FileKind::Smrmsg => {
+            let f = SmrmsgFile::open(path)?;
+            info.records = f.len() as u64;
+            info.time = Some(time_info(f.len(), |i| f.time_s(i)));
+        }
+        FileKind::ProfilesBinary => {
+            let f = ProfileFile::open(path)?;
+            let p = profile_info(
+                f.columns(),
+                (0..f.len()).map(|i| Ok((f.get_checked(i)?, i as u64))),
+            )?;
+            info.records = p.tally.returns;
+            info.profiles = Some(p);
+        }
+        FileKind::ProfilesCsv => {
+            let mut r = ProfileCsvReader::open(path)?;
+            let columns = r.columns();
+            let items = std::iter::from_fn(|| {
+                let item = r.next()?;
+                Some(item.map(|ret| (ret, r.line_no())))
+            });
+            let p = profile_info(columns, items)?;
+            info.records = p.tally.returns;
+            info.profiles = Some(p);
+        }
+        FileKind::ControlPoints => info.records = read_control_points(path)?.len() as u64,
+        FileKind::Patches => info.records = read_patches(path)?.len() as u64,
+    }
+    Ok(info)
+}
+
+fn detect(path: &Path, size: u64) -> Result<FileKind> {
+    let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let mut first = Vec::new();
+    BufReader::new(file)
+        .take(4096)
+        .read_until(b'\n', &mut first)
+        .map_err(|e| Error::io(path, e))?;
+    if first.starts_with(PROFILE_MAGIC) {
+        return Ok(FileKind::ProfilesBinary);
+    }
+    if let Some(kind) = text_kind(&first) {
+        return Ok(kind);
+    }
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_lowercase())
+        .unwrap_or_default();
+    if name.ends_with(".sbet") || name.starts_with("sbet") {
+        return Ok(FileKind::Sbet);
+    }
+    if name.ends_with(".smrmsg") || name.starts_with("smrmsg") {
+        return Ok(FileKind::Smrmsg);
+    }
+    let sbet = size % SBET_RECORD_BYTES as u64 == 0 && plausible(path, SBET_RECORD_BYTES, true)?;
+    let smrmsg =
+        size % SMRMSG_RECORD_BYTES as u64 == 0 && plausible(path, SMRMSG_RECORD_BYTES, false)?;
+    match (sbet, smrmsg) {
+        (true, false) => Ok(FileKind::Sbet),
+        (false, true) => Ok(FileKind::Smrmsg),
+        (true, true) => Err(Error::bad_file(
+            path,
+            "ambiguous: reads as both SBET (136-byte records) and SMRMSG (80-byte records); \
+             rename it with a .sbet or .smrmsg extension",
+        )),
+        (false, false) => Err(Error::bad_file(
+            path,
+            format!(
+                "not recognised: no kinescan profile magic, no known CSV header, and {size} B \
+                 is not a plausible SBET (136-byte records) or SMRMSG (80-byte records)"
+            ),
+        )),
+    }
+}
+
+/// Kind of a text file from its first line, if it is a known kinescan CSV header.
+fn text_kind(first: &[u8]) -> Option<FileKind> {
+    let line = std::str::from_utf8(first).ok()?;
+    let line = line.trim_start_matches('\u{feff}').trim_end();
+    let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+    let starts = |h: &[&str]| cols.len() >= h.len() && cols[..h.len()] == *h;
+    if starts(&super::profiles_csv::PROFILE_CSV_REQUIRED) {
+        Some(FileKind::ProfilesCsv)
+    } else if starts(&PATCHES_HEADER) {
+        Some(FileKind::Patches)
+    } else if starts(&super::points::CONTROL_POINTS_HEADER) {
+        Some(FileKind::ControlPoints)
+    } else {
+        None
+    }
+}
+
+/// Whether the first two records look like SBET (GPS week seconds, latitude and longitude in
+/// range, time increasing by < 10 s) or SMRMSG (week seconds, RMS values >= 0, time increasing).
+fn plausible(path: &Path, record_bytes: usize, sbet: bool) -> Result<bool> {
+    let mut buf = vec![0u8; 2 * record_bytes];
+    let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+    let n = f.read(&mut buf).map_err(|e| Error::io(path, e))?;
+    if n < record_bytes {
+        return Ok(false);
+    }
+    let week_s = |t: f64| (0.0..=604_800.0).contains(&t);
+    let rec_ok = |r: &[u8]| {
+        let v: Vec<f64> = (0..record_bytes / 8).map(|k| f64_le(r, 8 * k)).collect();
+        let finite = v.iter().all(|x| x.is_finite());
+        finite
+            && week_s(v[0])
+            && if sbet {
+                v[1].abs() <= std::f64::consts::FRAC_PI_2
+                    && v[2].abs() <= 2.0 * std::f64::consts::PI
+            } else {
+                v[1..].iter().all(|x| *x >= 0.0)
+            }
+    };
+    let first_ok = rec_ok(&buf[..record_bytes]);
+    if n < 2 * record_bytes {
+        return Ok(first_ok);
+    }
+    let (t0, t1) = (f64_le(&buf, 0), f64_le(&buf, record_bytes));
+    Ok(first_ok && rec_ok(&buf[record_bytes..]) && t1 > t0 && t1 - t0 < 10.0)
+}
+
+/// Span, median rate and gaps of `n` increasing times (two passes, bounded memory).
+fn time_info(n: usize, time_s: impl Fn(usize) -> f64) -> TimeInfo {
+    let (start_s, end_s) = (time_s(0), time_s(n - 1));
+    let intervals = n - 1;
+    let stride = intervals.div_ceil(MEDIAN_SAMPLE).max(1);
+    let mut sample: Vec<f64> = (0..intervals)
+        .step_by(stride)
+        .map(|i| time_s(i + 1) - time_s(i))
+        .collect();
+    let median_interval_s = if sample.is_empty() {
+        0.0
+    } else {
+        let mid = sample.len() / 2;
+        *sample.select_nth_unstable_by(mid, f64::total_cmp).1
+    };
+    let mut gap_count = 0;
+    let mut largest_gaps: Vec<Gap> = Vec::with_capacity(LISTED_GAPS + 1);
+    for i in 0..intervals {
+        let dt = time_s(i + 1) - time_s(i);
+        if dt > GAP_FACTOR * median_interval_s {
+            gap_count += 1;
+            if largest_gaps.len() < LISTED_GAPS || dt > largest_gaps[LISTED_GAPS - 1].interval_s {
+                largest_gaps.push(Gap {
+                    after_s: time_s(i),
+                    interval_s: dt,
+                });
+                largest_gaps.sort_by(|a, b| b.interval_s.total_cmp(&a.interval_s));
+                largest_gaps.truncate(LISTED_GAPS);
+            }
+        }
+    }
+    TimeInfo {
+        start_s,
+        end_s,
+        span_s: end_s - start_s,
+        median_interval_s,
+        median_rate_hz: if median_interval_s > 0.0 {
+            1.0 / median_interval_s
+        } else {
+            0.0
+        },
+        gap_count,
+        largest_gaps,
+    }
+}
+
+fn sbet_ranges(f: &SbetFile) -> SbetRanges {
+    let widen = |r: &mut (f64, f64), v: f64| *r = (r.0.min(v), r.1.max(v));
+    let r0 = f.record(0);
+    let speed = |r: &super::sbet::SbetRecord| {
+        (r.vel_x_mps.powi(2) + r.vel_y_mps.powi(2) + r.vel_z_mps.powi(2)).sqrt()
+    };
+    let mut out = SbetRanges {
+        lat_deg: (r0.lat_rad.to_degrees(), r0.lat_rad.to_degrees()),
+        lon_deg: (r0.lon_rad.to_degrees(), r0.lon_rad.to_degrees()),
+        h_m: (r0.alt_m, r0.alt_m),
+        speed_mps: (speed(&r0), speed(&r0)),
+    };
+    for i in 1..f.len() {
+        let r = f.record(i);
+        widen(&mut out.lat_deg, r.lat_rad.to_degrees());
+        widen(&mut out.lon_deg, r.lon_rad.to_degrees());
+        widen(&mut out.h_m, r.alt_m);
+        widen(&mut out.speed_mps, speed(&r));
+    }
+    out
+}
+
+fn profile_info(
+    columns: ProfileColumns,
+    items: impl Iterator<Item = Result<(RawReturn, u64)>>,
+) -> Result<ProfileInfo> {
+    let mut tally = ProfileTally::default();
+    let mut time_range_s: Option<(f64, f64)> = None;
+    for item in items {
+        let (r, at) = item?;
+        tally.add(&r, at);
+        if columns.time {
+            let (lo, hi) = time_range_s.unwrap_or((r.time_s, r.time_s));
+            time_range_s = Some((lo.min(r.time_s), hi.max(r.time_s)));
+        }
+    }
+    Ok(ProfileInfo {
+        columns,
+        tally,
+        time_range_s,
+    })
+}
+
+impl fmt::Display for FileInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let kind = match self.kind {
+            FileKind::Sbet => "Applanix SBET trajectory",
+            FileKind::Smrmsg => "Applanix SMRMSG accuracy",
+            FileKind::ProfilesBinary => "kinescan binary profiles",
+            FileKind::ProfilesCsv => "CSV profiles",
+            FileKind::ControlPoints => "control points (CSV)",
+            FileKind::Patches => "reference planar patches (CSV)",
+        };
+        writeln!(f, "{}: {kind}, {} B", self.path, self.size_bytes)?;
+        write!(f, "  records: {}", self.records)?;
+        if let Some(t) = &self.time {
+            write!(f, "\n{t}")?;
+        }
+        if let Some(s) = &self.sbet {
+            write!(
+                f,
+                "\n  lat {:.7} .. {:.7} deg, lon {:.7} .. {:.7} deg\n  height {:.3} .. {:.3} m, \
+                 speed {:.2} .. {:.2} m/s",
+                s.lat_deg.0,
+                s.lat_deg.1,
+                s.lon_deg.0,
+                s.lon_deg.1,
+                s.h_m.0,
+                s.h_m.1,
+                s.speed_mps.0,
+                s.speed_mps.1
+            )?;
+        }
+        if let Some(p) = &self.profiles {
+            write!(f, "\n{p}")?;
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for TimeInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(
+            f,
+            "  time {:.6} .. {:.6} s (span {:.3} s), median rate {:.3} Hz\n  gaps (> {GAP_FACTOR} x \
+             median interval): {}",
+            self.start_s, self.end_s, self.span_s, self.median_rate_hz, self.gap_count
+        )?;
+        for g in &self.largest_gaps {
+            write!(
+                f,
+                "\n    {:.3} s after t = {:.6} s",
+                g.interval_s, g.after_s
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl fmt::Display for ProfileInfo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = &self.tally;
+        let opt = |v: Option<(u32, u32)>| v.map_or("-".into(), |(a, b)| format!("{a} .. {b}"));
+        write!(
+            f,
+            "  returns {} (missing {}), profiles {}, counter {}\n  counter jumps (> 1 profile) {}, \
+             wraps/backward steps {}",
+            t.returns,
+            t.missing_returns,
+            t.profiles,
+            opt(t.profile_range),
+            t.jump_count,
+            t.wrap_count
+        )?;
+        for j in &t.jumps {
+            write!(f, "\n    at {}: {} -> {}", j.at, j.from, j.to)?;
+        }
+        if let Some((lo, hi)) = t.beta_range_rad {
+            write!(f, "\n  beta {lo:.6} .. {hi:.6} rad")?;
+        }
+        write!(
+            f,
+            "\n  columns: alpha_rad {}, time_s {}",
+            yes_no(self.columns.alpha),
+            yes_no(self.columns.time)
+        )?;
+        if let Some((lo, hi)) = self.time_range_s {
+            write!(f, "\n  time tags {lo:.6} .. {hi:.6} s")?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,441 @@
+//! Pipeline files (TOML): every stage's options, declared in one place.
+//!
+//! A pipeline file has one table per stage, in the order the data flows: `[inputs]` (read),
+//! `[trajectory]`, `[sensor]`, `[time]` (scanner clock), `[latency]`, `[output]` (georeference
+//! and write). Unknown keys are refused, naming the key and the file. Relative paths are
+//! relative to the pipeline file's folder. Angles are given in degrees (keys ending `_deg`)
+//! and converted once, here. docs/pipeline.md documents every option.
+
+use crate::geo::ellipsoid::Geodetic;
+use crate::timing::MirrorDirection;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole pipeline definition.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineConfig {
+    /// Input files.
+    pub inputs: InputsConfig,
+    /// Trajectory handling.
+    #[serde(default)]
+    pub trajectory: TrajectoryConfig,
+    /// Scanner mounting and intrinsics.
+    pub sensor: SensorConfig,
+    /// Scanner time model.
+    pub time: TimeConfig,
+    /// IMU-to-scanner latencies.
+    #[serde(default)]
+    pub latency: LatencyConfig,
+    /// Output LAS and report.
+    pub output: OutputConfig,
+}
+
+/// `[inputs]`: what is read.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputsConfig {
+    /// Applanix SBET trajectory.
+    pub sbet: PathBuf,
+    /// Applanix SMRMSG accuracy file (needed for uncertainty).
+    #[serde(default)]
+    pub smrmsg: Option<PathBuf>,
+    /// Scanner profile files, one per pass (binary `.ksprof` or CSV `.csv`). Pass `k` (from 0)
+    /// gets point source id `first_point_source_id + k`.
+    pub profiles: Vec<PathBuf>,
+    /// Point source id of the first profile file.
+    #[serde(default = "one_u16")]
+    pub first_point_source_id: u16,
+    /// GPS week of the trajectory's seconds-of-week times. When given, LAS GPS time is
+    /// adjusted standard GPS time; when absent, GPS week seconds (SPEC 2).
+    #[serde(default)]
+    pub gps_week: Option<u32>,
+}
+
+/// `[trajectory]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoryConfig {
+    /// Longest interval between trajectory records that may be interpolated across (s).
+    #[serde(default = "default_max_gap_s")]
+    pub max_gap_s: f64,
+}
+
+impl Default for TrajectoryConfig {
+    fn default() -> Self {
+        TrajectoryConfig {
+            max_gap_s: default_max_gap_s(),
+        }
+    }
+}
+
+/// `[sensor]`: lever arm, boresight, scanner intrinsics and range limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorConfig {
+    /// Scanner optical centre relative to the IMU origin in the body frame (m).
+    pub lever_arm_b_m: [f64; 3],
+    /// Boresight angles (bx, by, bz) (deg): `R_s^b = Rz(bz) Ry(by) Rx(bx)`.
+    #[serde(default)]
+    pub boresight_deg: [f64; 3],
+    /// Out-of-plane beam angle alpha0 (deg), used when a profile file has no alpha column.
+    #[serde(default)]
+    pub alpha0_deg: f64,
+    /// Range zero error K (m), added to every range.
+    #[serde(default)]
+    pub range_zero_m: f64,
+    /// Returns closer than this are rejected (m).
+    #[serde(default = "default_min_range_m")]
+    pub min_range_m: f64,
+    /// Returns further than this are rejected (m).
+    #[serde(default = "default_max_range_m")]
+    pub max_range_m: f64,
+}
+
+/// How return times are obtained (SPEC 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeModel {
+    /// `t = t0 + T (n + f(beta))` from the profile counter (no hardware time tags).
+    Software,
+    /// The `time_s` column holds each profile's PPS-derived start time `t_n`:
+    /// `t = t_n + T f(beta)`.
+    HardwareProfile,
+    /// The `time_s` column holds each return's own GPS time.
+    HardwareReturn,
+}
+
+/// `[time]`: the scanner clock.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeConfig {
+    /// Which time model.
+    #[serde(default = "default_time_model")]
+    pub model: TimeModel,
+    /// GPS time of the start of profile 0 (s); required by the software model.
+    #[serde(default)]
+    pub t0_s: Option<f64>,
+    /// Mirror period T (s).
+    pub period_s: f64,
+    /// Mirror angle at which the profile counter increments (deg).
+    #[serde(default)]
+    pub beta_start_deg: f64,
+    /// Sense of mirror rotation.
+    #[serde(default = "default_direction")]
+    pub direction: MirrorDirection,
+}
+
+/// `[latency]` (SPEC 2 signs).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LatencyConfig {
+    /// Attitude latency tau (s): attitude is evaluated at `t + tau`.
+    #[serde(default)]
+    pub attitude_s: f64,
+    /// Position latency (s): position is evaluated at `t + position_s`.
+    #[serde(default)]
+    pub position_s: f64,
+}
+
+/// Output mapping frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
+pub enum FrameConfig {
+    /// UTM with ellipsoidal height; zone from the trajectory's first record unless given.
+    Utm {
+        /// Zone 1-60 (automatic when absent).
+        #[serde(default)]
+        zone: Option<u8>,
+        /// Northern hemisphere (automatic when absent).
+        #[serde(default)]
+        north: Option<bool>,
+    },
+    /// Earth-centred, Earth-fixed WGS84.
+    Ecef,
+    /// Local East-North-Up about an origin (degrees, metres).
+    Enu {
+        /// Origin latitude (deg).
+        lat_deg: f64,
+        /// Origin longitude (deg).
+        lon_deg: f64,
+        /// Origin ellipsoidal height (m).
+        h_m: f64,
+    },
+}
+
+impl FrameConfig {
+    /// Origin of a local frame as geodetic radians.
+    pub fn enu_origin(&self) -> Option<Geodetic> {
+        match *self {
+            FrameConfig::Enu {
+                lat_deg,
+                lon_deg,
+                h_m,
+            } => Some(Geodetic {
+                lat_rad: lat_deg.to_radians(),
+                lon_rad: lon_deg.to_radians(),
+                h_m,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// How the output is split into files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitMode {
+    /// One LAS file: `path`.
+    None,
+    /// One file per profile file: `<stem>_<profile file stem>.las`.
+    PerInput,
+    /// At most `max_points_per_file` points each: `<stem>_0001.las`, `<stem>_0002.las`, ...
+    MaxPoints,
+}
+
+/// What happens to a return that cannot be georeferenced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Strictness {
+    /// Count it as rejected with its reason and go on.
+    Count,
+    /// Stop with an error naming the file and record.
+    Fail,
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// Output LAS path (the base name when split).
+    pub las: PathBuf,
+    /// Run report path (JSON); default: `<las stem>.report.json` beside the LAS.
+    #[serde(default)]
+    pub report: Option<PathBuf>,
+    /// Mapping frame.
+    #[serde(default = "default_frame")]
+    pub frame: FrameConfig,
+    /// Coordinate scale (m per integer step); the quantisation error is half of it.
+    #[serde(default = "default_scale_m")]
+    pub scale_m: f64,
+    /// File splitting.
+    #[serde(default = "default_split")]
+    pub split: SplitMode,
+    /// Maximum points per file with `split = "max_points"`.
+    #[serde(default)]
+    pub max_points_per_file: Option<u64>,
+    /// Per-return problems: counted (`count`) or fatal (`fail`).
+    #[serde(default = "default_strictness")]
+    pub strictness: Strictness,
+    /// Write the measured range (m) as an extra dimension `range`.
+    #[serde(default = "yes")]
+    pub range_dimension: bool,
+}
+
+fn one_u16() -> u16 {
+    1
+}
+fn yes() -> bool {
+    true
+}
+fn default_max_gap_s() -> f64 {
+    0.1
+}
+fn default_min_range_m() -> f64 {
+    0.5
+}
+fn default_max_range_m() -> f64 {
+    1000.0
+}
+fn default_time_model() -> TimeModel {
+    TimeModel::Software
+}
+fn default_direction() -> MirrorDirection {
+    MirrorDirection::Increasing
+}
+fn default_frame() -> FrameConfig {
+    FrameConfig::Utm {
+        zone: None,
+        north: None,
+    }
+}
+fn default_scale_m() -> f64 {
+    1e-4
+}
+fn default_split() -> SplitMode {
+    SplitMode::None
+}
+fn default_strictness() -> Strictness {
+    Strictness::Count
+}
+
+/// A pipeline file loaded with its overrides applied and paths resolved.
+#[derive(Debug, Clone)]
+pub struct LoadedPipeline {
+    /// Pipeline file.
+    pub path: PathBuf,
+    /// The configuration, paths made absolute or relative to the current directory.
+    pub config: PipelineConfig,
+    /// `--set` overrides applied, as given.
+    pub overrides: Vec<String>,
+}
+
+/// Reads `path`, applies `KEY=VALUE` overrides (dotted keys; VALUE parsed as TOML, or taken as
+/// a string when it does not parse), validates and resolves relative paths.
+pub fn load(path: &Path, overrides: &[String]) -> Result<LoadedPipeline> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let mut value: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| Error::config(&name, "(syntax)", e.to_string()))?;
+    for o in overrides {
+        apply_override(&mut value, o)?;
+    }
+    let source = if overrides.is_empty() {
+        name.clone()
+    } else {
+        format!("{name} (with --set)")
+    };
+    let mut config: PipelineConfig = serde_path_to_error::deserialize(toml::Value::Table(value))
+        .map_err(|e| Error::config(&source, e.path().to_string(), e.inner().message()))?;
+    validate(&config, &source)?;
+    resolve_paths(&mut config, path.parent().unwrap_or(Path::new(".")));
+    Ok(LoadedPipeline {
+        path: path.to_path_buf(),
+        config,
+        overrides: overrides.to_vec(),
+    })
+}
+
+/// Sets a dotted `key=value` in a TOML table.
+pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
+    let (key, raw) = assignment
+        .split_once('=')
+        .ok_or_else(|| Error::config("--set", assignment, "expected KEY=VALUE"))?;
+    let key = key.trim();
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        return Err(Error::config("--set", key, "empty key segment"));
+    }
+    let value = parse_value(raw.trim());
+    let mut t = table;
+    for p in &parts[..parts.len() - 1] {
+        let entry = t
+            .entry(p.to_string())
+            .or_insert_with(|| toml::Value::Table(Default::default()));
+        t = entry
+            .as_table_mut()
+            .ok_or_else(|| Error::config("--set", key, format!("`{p}` is not a table")))?;
+    }
+    t.insert(parts[parts.len() - 1].to_string(), value);
+    Ok(())
+}
+
+fn parse_value(raw: &str) -> toml::Value {
+    let doc = format!("v = {raw}");
+    match doc.parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").expect("parsed key"),
+        Err(_) => toml::Value::String(raw.to_string()),
+    }
+}
+
+fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
+    let bad = |key: &str, problem: String| Err(Error::config(source, key, problem));
+    if c.inputs.profiles.is_empty() {
+        return bad(
+            "inputs.profiles",
+            "at least one profile file is required".into(),
+        );
+    }
+    let finite_pos = |v: f64| v.is_finite() && v > 0.0;
+    if !finite_pos(c.trajectory.max_gap_s) {
+        return bad(
+            "trajectory.max_gap_s",
+            format!("must be > 0, got {}", c.trajectory.max_gap_s),
+        );
+    }
+    let s = &c.sensor;
+    let all_finite = s
+        .lever_arm_b_m
+        .iter()
+        .chain(&s.boresight_deg)
+        .all(|v| v.is_finite());
+    if !all_finite || !s.alpha0_deg.is_finite() || !s.range_zero_m.is_finite() {
+        return bad(
+            "sensor",
+            "lever arm, boresight, alpha0 and range zero must be finite".into(),
+        );
+    }
+    if !(s.min_range_m >= 0.0 && s.max_range_m > s.min_range_m && s.max_range_m.is_finite()) {
+        return bad(
+            "sensor.max_range_m",
+            format!(
+                "need 0 <= min_range_m < max_range_m, got {} and {}",
+                s.min_range_m, s.max_range_m
+            ),
+        );
+    }
+    let t = &c.time;
+    if !finite_pos(t.period_s) || t.period_s > 1.0 {
+        return bad(
+            "time.period_s",
+            format!("must be in (0, 1] s, got {}", t.period_s),
+        );
+    }
+    if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) {
+        return bad(
+            "time.t0_s",
+            "the software time model needs t0_s (or a sync stage)".into(),
+        );
+    }
+    let l = &c.latency;
+    if !(l.attitude_s.abs() < 1.0 && l.position_s.abs() < 1.0) {
+        return bad(
+            "latency",
+            "latencies must be finite and below 1 s in magnitude".into(),
+        );
+    }
+    let o = &c.output;
+    if !(o.scale_m > 0.0 && o.scale_m <= 1e-3) {
+        return bad(
+            "output.scale_m",
+            format!(
+                "must be in (0, 0.001] m (quantisation <= 0.5 mm), got {}",
+                o.scale_m
+            ),
+        );
+    }
+    if o.split == SplitMode::MaxPoints && !o.max_points_per_file.is_some_and(|n| n > 0) {
+        return bad(
+            "output.max_points_per_file",
+            "split = \"max_points\" needs max_points_per_file > 0".into(),
+        );
+    }
+    if let FrameConfig::Utm { zone: Some(z), .. } = o.frame {
+        if !(1..=60).contains(&z) {
+            return bad(
+                "output.frame.zone",
+                format!("UTM zone must be 1..60, got {z}"),
+            );
+        }
+    }
+    Ok(())
+}
+
+fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
+    let fix = |p: &mut PathBuf| {
+        if p.is_relative() {
+            *p = base.join(&*p);
+        }
+    };
+    fix(&mut c.inputs.sbet);
+    if let Some(p) = c.inputs.smrmsg.as_mut() {
+        fix(p);
+    }
+    c.inputs.profiles.iter_mut().for_each(fix);
+    fix(&mut c.output.las);
+    if let Some(p) = c.output.report.as_mut() {
+        fix(p);
+    }
+}

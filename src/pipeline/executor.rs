@@ -1,0 +1,603 @@
+//! The parallel executor: chunks of memory-mapped returns georeferenced with rayon, written in
+//! input order, so the output bytes do not depend on the number of threads.
+
+use super::config::{FrameConfig, LoadedPipeline, Strictness, TimeModel};
+use super::report::{
+    FileRecord, InputReport, OutputReport, RejectReason, ReturnCounts, RunReport, StageTiming,
+};
+use super::sink::{LasSink, SinkSettings};
+use crate::geo::local::LocalProjection;
+use crate::geo::projection::MapFrame;
+use crate::geo::rotations::wrap_pi;
+use crate::georef::{georeference, point_s, Sensor};
+use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
+use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
+use crate::timing::{Mirror, ScannerClock};
+use crate::trajectory::{NavGap, PoseCursor, Trajectory, TrajectoryOptions};
+use crate::{Error, Result};
+use nalgebra::Vector3;
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// How a run is executed (not what it computes: that is the pipeline file).
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Worker threads (None: all cores).
+    pub threads: Option<usize>,
+    /// Show a progress bar (only drawn when stderr is a terminal).
+    pub progress: bool,
+    /// Returns per parallel work item.
+    pub chunk_returns: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: None,
+            progress: true,
+            chunk_returns: 1 << 16,
+        }
+    }
+}
+
+/// Everything needed to turn one raw return into a LAS point.
+struct Georeferencer<'a> {
+    traj: &'a Trajectory,
+    sensor: Sensor,
+    clock: ScannerClock,
+    model: TimeModel,
+    columns: ProfileColumns,
+    attitude_latency_s: f64,
+    position_latency_s: f64,
+    min_range_m: f64,
+    max_range_m: f64,
+    frame: MapFrame,
+    point_source_id: u16,
+    range_dimension: bool,
+}
+
+/// The result of one chunk of returns: its LAS records, already encoded.
+struct ChunkOut {
+    records: Vec<u8>,
+    stats: ChunkStats,
+    counts: [u64; RejectReason::ALL.len()],
+    first_reject: Option<(usize, RejectReason)>,
+    profiles: Option<(u32, u32)>,
+    counter_decrease: Option<(usize, u32, u32)>,
+    jumps: Vec<(usize, u32, u32)>,
+    time_span_s: Option<(f64, f64)>,
+}
+
+fn reason_index(r: RejectReason) -> usize {
+    RejectReason::ALL
+        .iter()
+        .position(|x| *x == r)
+        .expect("listed")
+}
+
+impl From<NavGap> for RejectReason {
+    fn from(g: NavGap) -> Self {
+        match g {
+            NavGap::OutsideTrajectory => RejectReason::OutsideTrajectory,
+            NavGap::TrajectoryGap => RejectReason::TrajectoryGap,
+            NavGap::OutsideAccuracy => RejectReason::OutsideAccuracy,
+        }
+    }
+}
+
+impl Georeferencer<'_> {
+    /// GPS time (s) of a return, per the configured time model.
+    #[inline]
+    fn time_of(&self, r: &RawReturn) -> f64 {
+        match self.model {
+            TimeModel::Software => self.clock.time_of(r.profile, r.beta_rad),
+            TimeModel::HardwareProfile => self.clock.time_from_profile_tag(r.time_s, r.beta_rad),
+            TimeModel::HardwareReturn => r.time_s,
+        }
+    }
+
+    #[inline]
+    fn point(
+        &self,
+        r: &RawReturn,
+        cursor: &mut PoseCursor,
+        local: &mut Option<LocalProjection>,
+    ) -> Result<(LasPoint, f64), RejectReason> {
+        let alpha = if self.columns.alpha {
+            r.alpha_rad
+        } else {
+            self.sensor.alpha0_rad
+        };
+        let finite = r.beta_rad.is_finite() && r.range_m.is_finite() && alpha.is_finite();
+        if !finite || (self.columns.time && !r.time_s.is_finite()) {
+            return Err(RejectReason::NonFinite);
+        }
+        if r.range_m == 0.0 {
+            return Err(RejectReason::MissingReturn);
+        }
+        if !(self.min_range_m..=self.max_range_m).contains(&r.range_m) {
+            return Err(RejectReason::RangeOutOfLimits);
+        }
+        let t = self.time_of(r);
+        let pose = cursor.at(t)?;
+        let x_e = georeference(
+            &pose,
+            &self.sensor,
+            &point_s(&self.sensor, r.range_m, alpha, r.beta_rad),
+        );
+        let x_m = self
+            .local_projection(local, &pose.nav.r_e_m)
+            .ecef_to_map(&x_e);
+        let mut p = LasPoint {
+            x: x_m.x,
+            y: x_m.y,
+            z: x_m.z,
+            intensity: r.intensity,
+            scan_angle_deg: wrap_pi(r.beta_rad).to_degrees(),
+            gps_time: t,
+            point_source_id: self.point_source_id,
+            ..LasPoint::default()
+        };
+        if self.range_dimension {
+            p.extra[0] = r.range_m;
+        }
+        Ok((p, t))
+    }
+
+    /// The map projection expanded about the vehicle, re-expanded when it has moved
+    /// [`RECENTRE_M`] from the expansion centre.
+    #[inline]
+    fn local_projection<'p>(
+        &self,
+        local: &'p mut Option<LocalProjection>,
+        vehicle_e: &Vector3<f64>,
+    ) -> &'p LocalProjection {
+        let stale = local
+            .as_ref()
+            .is_none_or(|l| (l.centre_e() - vehicle_e).norm_squared() > RECENTRE_M * RECENTRE_M);
+        if stale {
+            *local = Some(LocalProjection::new(self.frame, *vehicle_e));
+        }
+        local.as_ref().expect("set above")
+    }
+
+    fn chunk(
+        &self,
+        file: &ProfileFile,
+        range: std::ops::Range<usize>,
+        layout: &PointLayout,
+    ) -> Result<ChunkOut> {
+        let mut out = ChunkOut {
+            records: Vec::with_capacity(range.len() * layout.record_len()),
+            stats: ChunkStats::empty(layout.record_len()),
+            counts: [0; RejectReason::ALL.len()],
+            first_reject: None,
+            profiles: None,
+            counter_decrease: None,
+            jumps: Vec::new(),
+            time_span_s: None,
+        };
+        let mut cursor =
+            PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
+        let mut local = None;
+        let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
+        let mut scratch = Vec::new();
+        let mut prev: Option<u32> = None;
+        let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
+        for i in range {
+            let r = file.get(i);
+            if let Some(p) = prev {
+                if r.profile < p {
+                    out.counter_decrease = Some((i, p, r.profile));
+                    break;
+                }
+                if r.profile > p + 1 {
+                    out.jumps.push((i, p, r.profile));
+                }
+            }
+            prev = Some(r.profile);
+            out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
+            match self.point(&r, &mut cursor, &mut local) {
+                Ok((p, t)) => {
+                    batch.push(p);
+                    if batch.len() == ENCODE_BATCH {
+                        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+                    }
+                    t_min = t_min.min(t);
+                    t_max = t_max.max(t);
+                }
+                Err(reason) => {
+                    out.counts[reason_index(reason)] += 1;
+                    out.first_reject.get_or_insert((i, reason));
+                }
+            }
+        }
+        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+        if t_min <= t_max {
+            out.time_span_s = Some((t_min, t_max));
+        }
+        Ok(out)
+    }
+}
+
+/// Points encoded at a time (keeps the per-thread point buffer in cache).
+const ENCODE_BATCH: usize = 1024;
+/// Distance (m) the vehicle may move from the local projection's centre before re-expanding;
+/// points further than `EXPANSION_RADIUS_M - RECENTRE_M` from the vehicle may fall back to the
+/// exact projection.
+const RECENTRE_M: f64 = 100.0;
+
+/// Encodes and empties `batch`, appending its records and stats to `out`.
+fn encode_into(
+    batch: &mut Vec<LasPoint>,
+    layout: &PointLayout,
+    scratch: &mut Vec<u8>,
+    out: &mut ChunkOut,
+) -> Result<()> {
+    let stats = encode_points(batch, layout, scratch)?;
+    out.records.extend_from_slice(scratch);
+    out.stats.merge(&stats);
+    batch.clear();
+    Ok(())
+}
+
+impl Georeferencer<'_> {}
+
+/// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
+pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
+    let threads = opts
+        .threads
+        .unwrap_or_else(rayon::current_num_threads)
+        .max(1);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| Error::Invalid(format!("cannot start {threads} threads: {e}")))?;
+    pool.install(|| run_in_pool(p, opts, threads))
+}
+
+fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<RunReport> {
+    let c = &p.config;
+    let mut stages = Vec::new();
+    let started = Instant::now();
+    let traj_opts = TrajectoryOptions {
+        max_gap_s: c.trajectory.max_gap_s,
+    };
+    let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
+    let mut files = vec![
+        FileRecord::of("pipeline", &p.path)?,
+        FileRecord::of("sbet", &c.inputs.sbet)?,
+    ];
+    if let Some(s) = &c.inputs.smrmsg {
+        files.push(FileRecord::of("smrmsg", s)?);
+    }
+    let frame = map_frame(&c.output.frame, &traj)?;
+    let out_dir = c
+        .output
+        .las
+        .parent()
+        .map(Path::to_path_buf)
+        .unwrap_or_default();
+    std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
+    let staging = tempfile::Builder::new()
+        .prefix(".kinescan-import-")
+        .tempdir_in(&out_dir)
+        .map_err(|e| Error::io(&out_dir, e))?;
+    let profile_files = open_profiles(&c.inputs.profiles, staging.path())?;
+    stages.push(StageTiming {
+        stage: "prepare".into(),
+        seconds: started.elapsed().as_secs_f64(),
+    });
+
+    let georef_started = Instant::now();
+    let settings = SinkSettings::new(c, &frame, &traj, &p.path)?;
+    let mut sink = LasSink::new(settings);
+    let total: u64 = profile_files.iter().map(|f| f.1.len() as u64).sum();
+    let bar = progress_bar(opts.progress, total);
+    let mut inputs = Vec::new();
+    for (k, (original, file)) in profile_files.iter().enumerate() {
+        let psid = c.inputs.first_point_source_id.saturating_add(k as u16);
+        let g = georeferencer(p, &traj, &frame, file, psid)?;
+        sink.start_input(original)?;
+        let report = process_file(
+            &g,
+            file,
+            original,
+            opts,
+            &mut sink,
+            &bar,
+            c.output.strictness,
+        )?;
+        inputs.push(report);
+    }
+    bar.finish_and_clear();
+    let summaries = sink.finish()?;
+    let georef_s = georef_started.elapsed().as_secs_f64();
+    stages.push(StageTiming {
+        stage: "georeference_and_write".into(),
+        seconds: georef_s,
+    });
+
+    let mut totals = ReturnCounts::default();
+    inputs
+        .iter()
+        .for_each(|i: &InputReport| totals.merge(&i.counts));
+    let outputs = summaries
+        .into_iter()
+        .map(|s| OutputReport {
+            path: s.path,
+            points: s.point_count,
+            min_m: s.min_m,
+            max_m: s.max_m,
+            bytes: s.file_bytes,
+        })
+        .collect();
+    Ok(RunReport {
+        kinescan_version: env!("CARGO_PKG_VERSION").into(),
+        files,
+        overrides: p.overrides.clone(),
+        parameters: c.clone(),
+        frame: frame.to_string(),
+        epsg: frame.epsg(),
+        trajectory_span_s: traj.span_s(),
+        inputs,
+        totals: totals.clone(),
+        outputs,
+        threads,
+        stages,
+        returns_per_second: totals.read as f64 / georef_s.max(1e-9),
+        peak_rss_bytes: super::report::peak_rss_bytes(),
+    })
+}
+
+/// The mapping frame: UTM zone from the first trajectory record unless configured.
+fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
+    let first = traj.sbet().record(0);
+    match *f {
+        FrameConfig::Utm { zone, north } => {
+            let auto = MapFrame::utm_for(first.lon_rad, first.lat_rad)?;
+            let MapFrame::Utm {
+                zone: z0,
+                north: n0,
+            } = auto
+            else {
+                unreachable!("utm_for gives UTM")
+            };
+            MapFrame::utm(zone.unwrap_or(z0), north.unwrap_or(n0))
+        }
+        FrameConfig::Ecef => Ok(MapFrame::Ecef),
+        FrameConfig::Enu { .. } => MapFrame::local_enu(f.enu_origin().expect("enu")),
+    }
+}
+
+/// Maps binary profile files; CSV files are first imported into `staging`.
+fn open_profiles(paths: &[PathBuf], staging: &Path) -> Result<Vec<(PathBuf, ProfileFile)>> {
+    paths
+        .iter()
+        .enumerate()
+        .map(|(k, path)| {
+            let is_csv = path
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+            let file = if is_csv {
+                let bin = staging.join(format!("input{k}.ksprof"));
+                crate::io::profiles_csv::import_csv(path, &bin)?;
+                ProfileFile::open(&bin)?
+            } else {
+                ProfileFile::open(path)?
+            };
+            Ok((path.clone(), file))
+        })
+        .collect()
+}
+
+fn georeferencer<'a>(
+    p: &LoadedPipeline,
+    traj: &'a Trajectory,
+    frame: &MapFrame,
+    file: &ProfileFile,
+    point_source_id: u16,
+) -> Result<Georeferencer<'a>> {
+    let c = &p.config;
+    let s = &c.sensor;
+    let columns = file.columns();
+    if c.time.model != TimeModel::Software && !columns.time {
+        let msg = format!(
+            "time.model = {:?} needs a time_s column, which this file lacks",
+            c.time.model
+        );
+        return Err(Error::bad_file(file.path(), msg));
+    }
+    let sensor = Sensor::new(
+        Vector3::from(s.lever_arm_b_m),
+        Vector3::from(s.boresight_deg.map(f64::to_radians)),
+        s.alpha0_deg.to_radians(),
+        s.range_zero_m,
+    );
+    let mirror = Mirror {
+        beta_start_rad: c.time.beta_start_deg.to_radians(),
+        direction: c.time.direction,
+    };
+    let clock = ScannerClock {
+        t0_s: c.time.t0_s.unwrap_or(0.0),
+        period_s: c.time.period_s,
+        mirror,
+    };
+    Ok(Georeferencer {
+        traj,
+        sensor,
+        clock,
+        model: c.time.model,
+        columns,
+        attitude_latency_s: c.latency.attitude_s,
+        position_latency_s: c.latency.position_s,
+        min_range_m: s.min_range_m,
+        max_range_m: s.max_range_m,
+        frame: *frame,
+        point_source_id,
+        range_dimension: c.output.range_dimension,
+    })
+}
+
+fn progress_bar(enabled: bool, total: u64) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !enabled || !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(total);
+    let style = indicatif::ProgressStyle::with_template(
+        "{spinner} georeferencing [{bar:40}] {human_pos}/{human_len} returns, {per_sec}, eta {eta}",
+    )
+    .expect("static template")
+    .progress_chars("=> ");
+    bar.set_style(style);
+    bar
+}
+
+#[allow(clippy::too_many_arguments)]
+fn process_file(
+    g: &Georeferencer,
+    file: &ProfileFile,
+    original: &Path,
+    opts: &RunOptions,
+    sink: &mut LasSink,
+    bar: &indicatif::ProgressBar,
+    strictness: Strictness,
+) -> Result<InputReport> {
+    let n = file.len();
+    let chunk = opts.chunk_returns.max(1);
+    let batch = chunk * rayon::current_num_threads() * 2;
+    let mut hasher = Sha256::new();
+    hasher.update(file.header_bytes());
+    let mut counts = ReturnCounts::default();
+    let mut tracker = CounterTracker::default();
+    let mut span: Option<(f64, f64)> = None;
+    for batch_start in (0..n).step_by(batch) {
+        let batch_end = (batch_start + batch).min(n);
+        let ranges: Vec<_> = (batch_start..batch_end)
+            .step_by(chunk)
+            .map(|s| s..(s + chunk).min(batch_end))
+            .collect();
+        let layout = sink.layout();
+        let outs: Vec<Result<ChunkOut>> = ranges
+            .par_iter()
+            .map(|r| g.chunk(file, r.clone(), layout))
+            .collect();
+        for (r, out) in ranges.iter().zip(outs) {
+            let out = out.map_err(|e| {
+                let at = format!("records {}..{}", r.start, r.end);
+                Error::bad_record(file.path(), at, e.to_string())
+            })?;
+            tracker.absorb(file.path(), r.start, &out)?;
+            if strictness == Strictness::Fail {
+                if let Some((i, reason)) = out.first_reject {
+                    let msg = format!("{} (output.strictness = \"fail\")", reason.describe());
+                    return Err(Error::bad_record(file.path(), format!("record {i}"), msg));
+                }
+            }
+            for (k, reason) in RejectReason::ALL.iter().enumerate() {
+                if out.counts[k] > 0 {
+                    *counts.rejected.entry(*reason).or_default() += out.counts[k];
+                }
+            }
+            counts.read += r.len() as u64;
+            counts.written += out.stats.count;
+            if let Some((a, b)) = out.time_span_s {
+                span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+            }
+            sink.write(&out.records, &out.stats)?;
+            hasher.update(file.record_bytes(r.clone()));
+            file.release(r.clone());
+            bar.inc(r.len() as u64);
+        }
+    }
+    debug_assert_eq!(counts.read, counts.written + counts.rejected_total());
+    let digest = hasher.finalize();
+    let bytes = std::fs::metadata(file.path())
+        .map_err(|e| Error::io(file.path(), e))?
+        .len();
+    let mut record = FileRecord {
+        role: "profiles".into(),
+        path: file.path().into(),
+        bytes,
+        sha256: super::report::hex(&digest),
+    };
+    if original != file.path() {
+        record = FileRecord::of("profiles", original)?;
+    }
+    Ok(InputReport {
+        file: record,
+        point_source_id: g.point_source_id,
+        counts,
+        profile_range: tracker.range,
+        counter_jumps: tracker.jumps,
+        counter_jump_examples: tracker.examples,
+        time_span_s: span,
+    })
+}
+
+/// Profile-counter continuity across chunks.
+#[derive(Default)]
+struct CounterTracker {
+    range: Option<(u32, u32)>,
+    jumps: u64,
+    examples: Vec<(u64, u32, u32)>,
+}
+
+impl CounterTracker {
+    const EXAMPLES: usize = 10;
+
+    fn absorb(&mut self, path: &Path, start: usize, out: &ChunkOut) -> Result<()> {
+        if let Some((i, from, to)) = out.counter_decrease {
+            let msg = format!(
+                "profile counter decreases from {from} to {to}: counter wrap or reordered file"
+            );
+            return Err(Error::bad_record(path, format!("record {i}"), msg));
+        }
+        let mut jumps: Vec<(u64, u32, u32)> = out
+            .jumps
+            .iter()
+            .map(|&(i, a, b)| (i as u64, a, b))
+            .collect();
+        if let (Some((_, last)), Some((first, _))) = (self.range, out.profiles) {
+            if first < last {
+                let msg = format!("profile counter decreases from {last} to {first}: counter wrap or reordered file");
+                return Err(Error::bad_record(path, format!("record {start}"), msg));
+            }
+            if first > last + 1 {
+                jumps.insert(0, (start as u64, last, first));
+            }
+        }
+        self.jumps += jumps.len() as u64;
+        for j in jumps {
+            if self.examples.len() < Self::EXAMPLES {
+                self.examples.push(j);
+            }
+        }
+        if let Some((first, last)) = out.profiles {
+            self.range = Some((self.range.map_or(first, |r| r.0), last));
+        }
+        Ok(())
+    }
+}
+
+/// Opens and validates every input of a pipeline without georeferencing: the trajectory, each
+/// profile file (CSV files are parsed completely), the time model's needs and the map frame.
+pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
+    let c = &p.config;
+    let traj_opts = TrajectoryOptions {
+        max_gap_s: c.trajectory.max_gap_s,
+    };
+    let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
+    let frame = map_frame(&c.output.frame, &traj)?;
+    let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    for (k, (_, file)) in open_profiles(&c.inputs.profiles, staging.path())?
+        .iter()
+        .enumerate()
+    {
+        georeferencer(p, &traj, &frame, file, k as u16)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,217 @@
+//! The JSON run report: what was read (sizes, hashes), every parameter used, what happened to
+//! every return (read = written + rejected by reason), time spans and stage timings.
+
+use crate::io::atomic::write_atomic;
+use crate::pipeline::config::PipelineConfig;
+use crate::{Error, Result};
+use serde::Serialize;
+use sha2::{Digest, Sha256};
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+/// Why a return was not written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RejectReason {
+    /// Range 0 or empty: the scanner recorded no echo (SPEC 6).
+    MissingReturn,
+    /// A non-finite angle, range or time tag.
+    NonFinite,
+    /// Range outside `[sensor.min_range_m, sensor.max_range_m]`.
+    RangeOutOfLimits,
+    /// Return time before the first or after the last trajectory record.
+    OutsideTrajectory,
+    /// Return time inside a trajectory gap longer than `trajectory.max_gap_s`.
+    TrajectoryGap,
+    /// Return time outside the SMRMSG span (uncertainty requested).
+    OutsideAccuracy,
+}
+
+impl RejectReason {
+    /// Every reason, in report order.
+    pub const ALL: [RejectReason; 6] = [
+        RejectReason::MissingReturn,
+        RejectReason::NonFinite,
+        RejectReason::RangeOutOfLimits,
+        RejectReason::OutsideTrajectory,
+        RejectReason::TrajectoryGap,
+        RejectReason::OutsideAccuracy,
+    ];
+
+    /// A sentence for error messages.
+    pub fn describe(self) -> &'static str {
+        match self {
+            RejectReason::MissingReturn => "missing return (range 0)",
+            RejectReason::NonFinite => "non-finite angle, range or time tag",
+            RejectReason::RangeOutOfLimits => "range outside sensor.min_range_m..max_range_m",
+            RejectReason::OutsideTrajectory => "return time outside the trajectory span",
+            RejectReason::TrajectoryGap => {
+                "return time inside a trajectory gap longer than trajectory.max_gap_s"
+            }
+            RejectReason::OutsideAccuracy => "return time outside the SMRMSG span",
+        }
+    }
+}
+
+/// Counts of returns by fate.
+#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+pub struct ReturnCounts {
+    /// Returns read.
+    pub read: u64,
+    /// Returns written to LAS.
+    pub written: u64,
+    /// Returns not written, by reason.
+    pub rejected: BTreeMap<RejectReason, u64>,
+}
+
+impl ReturnCounts {
+    /// Total rejected.
+    pub fn rejected_total(&self) -> u64 {
+        self.rejected.values().sum()
+    }
+
+    /// Adds `other`.
+    pub fn merge(&mut self, other: &ReturnCounts) {
+        self.read += other.read;
+        self.written += other.written;
+        for (k, v) in &other.rejected {
+            *self.rejected.entry(*k).or_default() += v;
+        }
+    }
+}
+
+/// A file read or written, identified by size and SHA-256.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct FileRecord {
+    /// Role: "pipeline", "sbet", "smrmsg", "profiles", "las".
+    pub role: String,
+    /// Path as used.
+    pub path: PathBuf,
+    /// Size (bytes).
+    pub bytes: u64,
+    /// SHA-256 of the content, hex.
+    pub sha256: String,
+}
+
+impl FileRecord {
+    /// Hashes `path` by streaming it.
+    pub fn of(role: &str, path: &Path) -> Result<Self> {
+        let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
+        let mut h = Sha256::new();
+        let mut buf = vec![0u8; 1 << 20];
+        let mut bytes = 0u64;
+        loop {
+            let n = f.read(&mut buf).map_err(|e| Error::io(path, e))?;
+            if n == 0 {
+                break;
+            }
+            h.update(&buf[..n]);
+            bytes += n as u64;
+        }
+        Ok(FileRecord {
+            role: role.into(),
+            path: path.into(),
+            bytes,
+            sha256: hex(&h.finalize()),
+        })
+    }
+}
+
+/// Lower-case hex of `bytes`.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// One profile file's processing summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct InputReport {
+    /// The profile file as read.
+    pub file: FileRecord,
+    /// Point source id given to its points.
+    pub point_source_id: u16,
+    /// Returns by fate.
+    pub counts: ReturnCounts,
+    /// First and last profile counter.
+    pub profile_range: Option<(u32, u32)>,
+    /// Profile counter increments larger than 1 (lost profiles), count.
+    pub counter_jumps: u64,
+    /// The first few counter jumps: (0-based record, from, to).
+    pub counter_jump_examples: Vec<(u64, u32, u32)>,
+    /// GPS time span of the georeferenced returns (s of week).
+    pub time_span_s: Option<(f64, f64)>,
+}
+
+/// A LAS file written.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OutputReport {
+    /// Path.
+    pub path: PathBuf,
+    /// Points written.
+    pub points: u64,
+    /// Header bounds min X, Y, Z (m).
+    pub min_m: [f64; 3],
+    /// Header bounds max X, Y, Z (m).
+    pub max_m: [f64; 3],
+    /// Size (bytes).
+    pub bytes: u64,
+}
+
+/// Wall time of one stage.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StageTiming {
+    /// Stage name.
+    pub stage: String,
+    /// Wall time (s).
+    pub seconds: f64,
+}
+
+/// The whole run report.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunReport {
+    /// kinescan version.
+    pub kinescan_version: String,
+    /// Pipeline, trajectory and accuracy files.
+    pub files: Vec<FileRecord>,
+    /// `--set` overrides applied, as given.
+    pub overrides: Vec<String>,
+    /// Every parameter used (defaults filled in, paths resolved).
+    pub parameters: PipelineConfig,
+    /// Mapping frame, in words, and its EPSG code if any.
+    pub frame: String,
+    /// EPSG code of the output CRS, if any.
+    pub epsg: Option<u32>,
+    /// Trajectory span (s of week).
+    pub trajectory_span_s: (f64, f64),
+    /// Per profile file.
+    pub inputs: Vec<InputReport>,
+    /// All inputs together.
+    pub totals: ReturnCounts,
+    /// LAS files written.
+    pub outputs: Vec<OutputReport>,
+    /// Threads used.
+    pub threads: usize,
+    /// Stage wall times.
+    pub stages: Vec<StageTiming>,
+    /// Returns per second over the georeference-and-write stage.
+    pub returns_per_second: f64,
+    /// Peak resident memory of the process (bytes; Linux `VmHWM`), when known.
+    pub peak_rss_bytes: Option<u64>,
+}
+
+/// Peak resident set size of this process (bytes), from `/proc/self/status` on Linux.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+impl RunReport {
+    /// Writes the report as pretty JSON, atomically.
+    pub fn write(&self, path: &Path) -> Result<()> {
+        let json =
+            serde_json::to_vec_pretty(self).map_err(|e| Error::Invalid(format!("report: {e}")))?;
+        write_atomic(path, &json)
+    }
+}

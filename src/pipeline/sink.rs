@@ -1,0 +1,221 @@
+//! Where georeferenced points go: one or more LAS files, split per input or by point count,
+//! named predictably, each written atomically.
+
+use super::config::{PipelineConfig, SplitMode};
+use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
+use crate::geo::projection::MapFrame;
+use crate::io::las::{
+    stats_of_records, ChunkStats, ExtraDim, GpsTimeConvention, LasSummary, LasWriter,
+    LasWriterConfig, PointLayout,
+};
+use crate::trajectory::Trajectory;
+use crate::{Error, Result};
+use std::path::{Path, PathBuf};
+
+/// Seconds in a GPS week.
+const WEEK_S: f64 = 604_800.0;
+
+/// File-level settings shared by every output file of a run.
+pub struct SinkSettings {
+    config: LasWriterConfig,
+    las: PathBuf,
+    split: SplitMode,
+    max_points: u64,
+}
+
+impl SinkSettings {
+    /// Settings from the pipeline: scale, offset (map coordinates of the first trajectory
+    /// record, rounded to 1 km), GPS time convention, extra dimensions, CRS.
+    pub fn new(
+        c: &PipelineConfig,
+        frame: &MapFrame,
+        traj: &Trajectory,
+        _pipeline: &Path,
+    ) -> Result<Self> {
+        let first = traj.sbet().record(0);
+        let g = Geodetic {
+            lat_rad: first.lat_rad,
+            lon_rad: first.lon_rad,
+            h_m: first.alt_m,
+        };
+        let origin = frame.ecef_to_map(&geodetic_to_ecef(g));
+        let offset = [origin.x, origin.y, origin.z].map(|v| (v / 1000.0).round() * 1000.0);
+        let time = match c.inputs.gps_week {
+            Some(gps_week) => GpsTimeConvention::AdjustedStandard { gps_week },
+            None => GpsTimeConvention::WeekSeconds,
+        };
+        let layout = PointLayout::with_scale([c.output.scale_m; 3], offset, time, extra_dims(c))?;
+        let (day, year) = creation_date(c.inputs.gps_week, first.time_s);
+        let config = LasWriterConfig {
+            layout,
+            wkt: frame.wkt(),
+            system_identifier: "kinescan mobile laser scanning".into(),
+            file_source_id: 0,
+            creation_day_of_year: day,
+            creation_year: year,
+        };
+        Ok(SinkSettings {
+            config,
+            las: c.output.las.clone(),
+            split: c.output.split,
+            max_points: c.output.max_points_per_file.unwrap_or(u64::MAX),
+        })
+    }
+}
+
+/// Extra dimensions, in record order (indices into `LasPoint::extra`).
+pub fn extra_dims(c: &PipelineConfig) -> Vec<ExtraDim> {
+    let mut dims = Vec::new();
+    if c.output.range_dimension {
+        dims.push(ExtraDim::f32("range", "measured range rho (m)"));
+    }
+    dims
+}
+
+/// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",
+/// as the LAS specification allows) without a week, so output never depends on the clock.
+fn creation_date(gps_week: Option<u32>, sow: f64) -> (u16, u16) {
+    let Some(week) = gps_week else { return (0, 0) };
+    // GPS epoch 1980-01-06 is day 5 (0-based) of 1980; count whole days forward.
+    let mut days = (f64::from(week) * WEEK_S + sow).div_euclid(86_400.0) as i64 + 5;
+    let mut year = 1980i64;
+    loop {
+        let len = if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 {
+            366
+        } else {
+            365
+        };
+        if days < len {
+            return ((days + 1) as u16, year as u16);
+        }
+        days -= len;
+        year += 1;
+    }
+}
+
+/// The open output file(s).
+pub struct LasSink {
+    settings: SinkSettings,
+    current: Option<LasWriter>,
+    in_current: u64,
+    parts: u32,
+    input_stem: String,
+    done: Vec<LasSummary>,
+}
+
+impl LasSink {
+    /// A sink with no file open yet.
+    pub fn new(settings: SinkSettings) -> Self {
+        LasSink {
+            settings,
+            current: None,
+            in_current: 0,
+            parts: 0,
+            input_stem: String::new(),
+            done: Vec::new(),
+        }
+    }
+
+    /// Called before each profile file's points: starts a new file when splitting per input.
+    pub fn start_input(&mut self, profile_path: &Path) -> Result<()> {
+        self.input_stem = profile_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        if self.settings.split == SplitMode::PerInput {
+            self.close()?;
+            self.open()?;
+        }
+        Ok(())
+    }
+
+    fn path_for_next(&self) -> PathBuf {
+        let las = &self.settings.las;
+        let stem = las
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "cloud".into());
+        let name = match self.settings.split {
+            SplitMode::None => return las.clone(),
+            SplitMode::PerInput => format!("{stem}_{}.las", self.input_stem),
+            SplitMode::MaxPoints => format!("{stem}_{:04}.las", self.parts + 1),
+        };
+        las.with_file_name(name)
+    }
+
+    fn open(&mut self) -> Result<()> {
+        let path = self.path_for_next();
+        if self.done.iter().any(|s| s.path == path) {
+            let msg = "two profile files share a file stem, so per-input outputs would collide";
+            return Err(Error::bad_file(path, msg));
+        }
+        self.current = Some(LasWriter::create(&path, self.settings.config.clone())?);
+        self.parts += 1;
+        self.in_current = 0;
+        Ok(())
+    }
+
+    fn close(&mut self) -> Result<()> {
+        if let Some(w) = self.current.take() {
+            self.done.push(w.finish()?);
+        }
+        Ok(())
+    }
+
+    /// The record layout every file of this sink uses.
+    pub fn layout(&self) -> &PointLayout {
+        &self.settings.config.layout
+    }
+
+    /// Writes encoded records in order, rolling to a new file at the point limit.
+    pub fn write(&mut self, mut records: &[u8], stats: &ChunkStats) -> Result<()> {
+        let layout = self.settings.config.layout.clone();
+        let len = layout.record_len();
+        let mut whole = Some(stats.clone());
+        while !records.is_empty() || self.current.is_none() {
+            if self.current.is_none() || self.in_current == self.settings.max_points {
+                self.close()?;
+                self.open()?;
+            }
+            let n = (records.len() / len) as u64;
+            let room = (self.settings.max_points - self.in_current).min(n);
+            let (now, rest) = records.split_at(room as usize * len);
+            // Stats of a split chunk are recomputed from its records.
+            let part = match whole.take() {
+                Some(s) if room == n => s,
+                _ => stats_of_records(now, &layout),
+            };
+            self.current
+                .as_mut()
+                .expect("opened above")
+                .write_encoded(now, &part)?;
+            self.in_current += room;
+            records = rest;
+        }
+        Ok(())
+    }
+
+    /// Finishes every file (an empty run still writes one valid, empty LAS file).
+    pub fn finish(mut self) -> Result<Vec<LasSummary>> {
+        if self.current.is_none() && self.done.is_empty() {
+            self.open()?;
+        }
+        self.close()?;
+        Ok(self.done)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::creation_date;
+
+    #[test]
+    fn creation_date_from_gps_week() {
+        // GPS week 0 starts 1980-01-06 (day 6); week 2346 starts 2024-12-22 (day 357 of a
+        // leap year), and ten days later is 2025-01-01.
+        assert_eq!(creation_date(Some(0), 0.0), (6, 1980));
+        assert_eq!(creation_date(Some(2346), 0.0), (357, 2024));
+        assert_eq!(creation_date(Some(2346), 10.0 * 86_400.0 + 5.0), (1, 2025));
+        assert_eq!(creation_date(None, 0.0), (0, 0));
+    }
+}

@@ -1,0 +1,127 @@
+//! Shared test fixtures: a synthetic trajectory that exercises every heading, roll and pitch to
+//! +-30 deg and a wander angle, and helpers to invert the georeferencing equation.
+#![allow(dead_code)]
+
+use kinescan::geo::ellipsoid::{geodetic_to_ecef, r_n_to_e, Geodetic};
+use kinescan::geo::rotations::wrap_pi;
+use kinescan::io::sbet::{SbetRecord, SbetWriter};
+use kinescan::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
+use nalgebra::Vector3;
+use std::f64::consts::TAU;
+use std::path::{Path, PathBuf};
+
+/// Start of the synthetic trajectory (GPS seconds of week).
+pub const T_START_S: f64 = 300_000.0;
+/// Its length (s).
+pub const DURATION_S: f64 = 20.0;
+/// Origin of the synthetic drive (Munich, UTM zone 32N).
+pub const LAT0_DEG: f64 = 48.137;
+/// Origin longitude.
+pub const LON0_DEG: f64 = 11.575;
+
+/// Writes a 200 Hz SBET (and a 1 Hz SMRMSG): a 30 m circle at 15 m/s (heading through more
+/// than 1.5 turns, so every heading and the 359 -> 1 deg wrap occur), roll and pitch
+/// sinusoids of 30 deg amplitude, a slowly varying wander angle, platform heading wrapped to
+/// (-pi, pi].
+pub fn write_trajectory(dir: &Path) -> (PathBuf, PathBuf) {
+    let sbet = dir.join("traj.sbet");
+    let smrmsg = dir.join("traj.smrmsg");
+    let mut w = SbetWriter::create(&sbet).unwrap();
+    let n = (DURATION_S * 200.0) as usize;
+    let (lat0, lon0) = (LAT0_DEG.to_radians(), LON0_DEG.to_radians());
+    let (rad_m, speed) = (30.0, 15.0);
+    for k in 0..=n {
+        let t = k as f64 / 200.0;
+        let ang = speed / rad_m * t;
+        let (north, east) = (rad_m * ang.sin(), rad_m * (1.0 - ang.cos()));
+        let heading = ang; // tangent of the circle
+        let wander = 0.3 * (0.1 * t).sin();
+        let r = SbetRecord {
+            time_s: T_START_S + t,
+            lat_rad: lat0 + north / 6_366_000.0,
+            lon_rad: lon0 + east / (6_389_000.0 * lat0.cos()),
+            alt_m: 520.0 + 0.5 * (0.3 * t).sin(),
+            vel_x_mps: speed * (heading + wander).cos(),
+            vel_y_mps: speed * (heading + wander).sin(),
+            roll_rad: 30f64.to_radians() * (0.7 * t).sin(),
+            pitch_rad: 30f64.to_radians() * (0.45 * t + 1.0).sin(),
+            platform_heading_rad: wrap_pi(heading + wander),
+            wander_rad: wander,
+            rate_z_radps: speed / rad_m,
+            ..SbetRecord::default()
+        };
+        w.push(&r).unwrap();
+    }
+    w.finish().unwrap();
+    let mut s = SmrmsgWriter::create(&smrmsg).unwrap();
+    for k in 0..=(DURATION_S as usize) {
+        let r = SmrmsgRecord {
+            time_s: T_START_S + k as f64,
+            north_m: 0.02,
+            east_m: 0.02,
+            down_m: 0.04,
+            vel_north_mps: 0.01,
+            vel_east_mps: 0.01,
+            vel_down_mps: 0.01,
+            roll_arcmin: 0.3,
+            pitch_arcmin: 0.3,
+            heading_arcmin: 1.0,
+        };
+        s.push(&r).unwrap();
+    }
+    s.finish().unwrap();
+    (sbet, smrmsg)
+}
+
+/// A 64-bit linear congruential generator: deterministic test randomness without a seed
+/// dependency on rand's stream stability.
+pub struct Lcg(pub u64);
+
+impl Lcg {
+    /// Uniform in [0, 1).
+    pub fn uniform(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+    /// Uniform in [a, b).
+    pub fn range(&mut self, a: f64, b: f64) -> f64 {
+        a + (b - a) * self.uniform()
+    }
+}
+
+/// ECEF of a geodetic position in degrees.
+pub fn ecef_deg(lat_deg: f64, lon_deg: f64, h_m: f64) -> Vector3<f64> {
+    geodetic_to_ecef(Geodetic {
+        lat_rad: lat_deg.to_radians(),
+        lon_rad: lon_deg.to_radians(),
+        h_m,
+    })
+}
+
+/// `R_n^e` at the synthetic origin.
+pub fn r_n_to_e_origin() -> nalgebra::Matrix3<f64> {
+    r_n_to_e(LAT0_DEG.to_radians(), LON0_DEG.to_radians())
+}
+
+/// A full turn.
+pub const FULL_TURN: f64 = TAU;
+
+/// The shared real-data folder: `$KINESCAN_REALDATA`, else `../shared/realdata` beside the
+/// crate. `None` (after printing a skip notice naming `test`) when absent.
+pub fn realdata(test: &str) -> Option<PathBuf> {
+    let candidates = [
+        std::env::var_os("KINESCAN_REALDATA").map(PathBuf::from),
+        Some(Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata")),
+    ];
+    let found = candidates
+        .into_iter()
+        .flatten()
+        .find(|p| p.join("PROVENANCE.md").exists());
+    if found.is_none() {
+        eprintln!("SKIPPED {test}: ../shared/realdata not found (set KINESCAN_REALDATA)");
+    }
+    found
+}
