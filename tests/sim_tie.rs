@@ -19,7 +19,10 @@ fn error_free_survey_georeferences_onto_truth() {
             .iter()
             .map(|p| (p.x_e - p.truth_e).norm())
             .fold(0.0, f64::max);
-        println!("pps {pps}: {} returns, worst |pipeline - truth| = {worst:.3e} m", pairs.len());
+        println!(
+            "pps {pps}: {} returns, worst |pipeline - truth| = {worst:.3e} m",
+            pairs.len()
+        );
         // The acceptance bound; float round-off alone is ~1e-9 m here.
         assert!(worst <= 1e-4, "worst error {worst} m");
     }
@@ -37,7 +40,10 @@ fn same_seed_same_bytes_for_one_or_two_threads() {
     let (a, b) = (tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap());
     run(&sc, a.path(), 1);
     run(&sc, b.path(), 2);
-    let mut names: Vec<_> = std::fs::read_dir(a.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let mut names: Vec<_> = std::fs::read_dir(a.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     names.sort();
     assert!(names.len() >= 8, "{names:?}");
     for n in names {
@@ -56,14 +62,46 @@ fn same_seed_same_bytes_for_one_or_two_threads() {
 #[test]
 fn bad_scenarios_are_refused_with_the_key_named() {
     let cases = [
-        ("[scanner]\nperiod_s = 0.02", "[scanner]\nperiod_s = -0.02", "scanner.period_s"),
-        ("[scanner]\nperiod_s = 0.02", "[scanner]\nperiod_s = 0.02\nmirror_speed = 3", "scanner.mirror_speed"),
-        ("duration_s = 14.0", "duration_s = 14.0\ncolour = 1", "colour"),
-        ("[route]\n", "[route]\nmax_speed_mps = 35.0\n", "route.max_speed_mps"),
-        ("[scanner]\nperiod_s = 0.02", "[scanner]\nperiod_s = 0.02\nmax_range_m = -5.0", "scanner.max_range_m"),
-        ("[scanner]\nperiod_s = 0.02", "[scanner]\nperiod_s = 0.02\npoints_per_profile = 0", "scanner.points_per_profile"),
-        ("[route]\n", "[effects]\nlatency_s = 0.01\n[route]\n", "effects.latency_s"),
-        ("max_speed_mps = 11.0", "max_speed_mps = \"fast\"", "route.max_speed_mps"),
+        (
+            "[scanner]\nperiod_s = 0.02",
+            "[scanner]\nperiod_s = -0.02",
+            "scanner.period_s",
+        ),
+        (
+            "[scanner]\nperiod_s = 0.02",
+            "[scanner]\nperiod_s = 0.02\nmirror_speed = 3",
+            "scanner.mirror_speed",
+        ),
+        (
+            "duration_s = 14.0",
+            "duration_s = 14.0\ncolour = 1",
+            "colour",
+        ),
+        (
+            "max_speed_mps = 11.0",
+            "max_speed_mps = 35.0",
+            "route.max_speed_mps",
+        ),
+        (
+            "[scanner]\nperiod_s = 0.02",
+            "[scanner]\nperiod_s = 0.02\nmax_range_m = -5.0",
+            "scanner.max_range_m",
+        ),
+        (
+            "points_per_profile = 300",
+            "points_per_profile = 0",
+            "scanner.points_per_profile",
+        ),
+        (
+            "[route]\n",
+            "[effects]\nlatency_s = 0.01\n[route]\n",
+            "effects.latency_s",
+        ),
+        (
+            "max_speed_mps = 11.0",
+            "max_speed_mps = \"fast\"",
+            "route.max_speed_mps",
+        ),
     ];
     for (from, to, key) in cases {
         assert!(BASE.contains(from), "{from}");

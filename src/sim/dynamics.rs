@@ -36,7 +36,11 @@ pub struct Frame {
 impl Frame {
     /// Frame about geodetic origin (rad, rad, m).
     pub fn new(lat_rad: f64, lon_rad: f64, h_m: f64) -> Frame {
-        let g = crate::geo::ellipsoid::Geodetic { lat_rad, lon_rad, h_m };
+        let g = crate::geo::ellipsoid::Geodetic {
+            lat_rad,
+            lon_rad,
+            h_m,
+        };
         Frame {
             origin_e: crate::geo::ellipsoid::geodetic_to_ecef(g),
             r_enu_to_e: r_enu_to_e(lat_rad, lon_rad),
@@ -77,7 +81,8 @@ impl TruthGen {
     pub fn new(sc: &Scenario, route: Route, frame: Frame) -> TruthGen {
         let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0xD7A_0000_0000_0002);
         let bands = [(1.0, 1.8), (2.5, 4.0), (5.0, 9.0)];
-        let vib = [0; 3].map(|_| bands.map(|(lo, hi)| (rng.random_range(lo..hi), rng.random_range(0.0..TAU))));
+        let vib = [0; 3]
+            .map(|_| bands.map(|(lo, hi)| (rng.random_range(lo..hi), rng.random_range(0.0..TAU))));
         TruthGen {
             route,
             cfg: sc.vehicle.clone(),
@@ -130,16 +135,32 @@ impl TruthGen {
             self.cfg.pitch_per_longitudinal_acc_deg.to_radians() * m.a_mps2,
         ];
         for i in 0..2 {
-            self.lag[i] = if self.k == 0 { target[i] } else { self.lag[i] + w * (target[i] - self.lag[i]) };
+            self.lag[i] = if self.k == 0 {
+                target[i]
+            } else {
+                self.lag[i] + w * (target[i] - self.lag[i])
+            };
         }
         let amp = (m.v_mps / self.v_top).min(1.0);
         let vib = |ch: usize| -> f64 {
-            self.vib[ch].iter().map(|(f, ph)| (TAU * f * tr + ph).sin()).sum::<f64>() / 3.0 * amp
+            self.vib[ch]
+                .iter()
+                .map(|(f, ph)| (TAU * f * tr + ph).sin())
+                .sum::<f64>()
+                / 3.0
+                * amp
         };
-        let roll = -(gx * de - gy * dn).atan() + self.lag[0] + self.cfg.vibration_deg[0].to_radians() * vib(0);
-        let pitch = (gx * de + gy * dn).atan() + self.lag[1] + self.cfg.vibration_deg[1].to_radians() * vib(1);
+        let roll = -(gx * de - gy * dn).atan()
+            + self.lag[0]
+            + self.cfg.vibration_deg[0].to_radians() * vib(0);
+        let pitch = (gx * de + gy * dn).atan()
+            + self.lag[1]
+            + self.cfg.vibration_deg[1].to_radians() * vib(1);
         let heading = de.atan2(dn);
-        let z = gx * p.xy[0] + gy * p.xy[1] + self.cfg.imu_height_m + self.cfg.vibration_vertical_m * vib(2);
+        let z = gx * p.xy[0]
+            + gy * p.xy[1]
+            + self.cfg.imu_height_m
+            + self.cfg.vibration_vertical_m * vib(2);
         let x_e = self.frame.to_ecef(&Vector3::new(p.xy[0], p.xy[1], z));
         let geo = ecef_to_geodetic(&x_e);
         // Scene-frame attitude to the local NED frame at the vehicle.
@@ -149,7 +170,8 @@ impl TruthGen {
         let heading_n = wrap_two_pi(heading_n);
         let v_up = m.v_mps * (gx * de + gy * dn);
         let v_enu = Vector3::new(m.v_mps * de, m.v_mps * dn, v_up);
-        let v_ned = r_n_to_e(geo.lat_rad, geo.lon_rad).transpose() * (self.frame.r_enu_to_e * v_enu);
+        let v_ned =
+            r_n_to_e(geo.lat_rad, geo.lon_rad).transpose() * (self.frame.r_enu_to_e * v_enu);
         let rates = self.body_rates(roll_n, pitch_n, heading_n, dt);
         self.prev = Some((roll_n, pitch_n, heading_n));
         self.k += 1;
@@ -183,6 +205,10 @@ impl TruthGen {
         let (rd, pd, hd) = (d(roll, r0), d(pitch, p0), d(heading, h0));
         let (sr, cr) = roll.sin_cos();
         let (sp, cp) = pitch.sin_cos();
-        Vector3::new(rd - sp * hd, cr * pd + sr * cp * hd, -sr * pd + cr * cp * hd)
+        Vector3::new(
+            rd - sp * hd,
+            cr * pd + sr * cp * hd,
+            -sr * pd + cr * cp * hd,
+        )
     }
 }

@@ -65,7 +65,12 @@ impl Effects {
         lim(c, "encoder_offset_deg", self.encoder_offset_deg, 10.0);
         lim(c, "cone_error_deg", self.cone_error_deg, 10.0);
         lim(c, "clock_drift_ppm", self.clock_drift_ppm, 1e4);
-        lim(c, "clock_drift_quadratic_per_s", self.clock_drift_quadratic_per_s, 1e-3);
+        lim(
+            c,
+            "clock_drift_quadratic_per_s",
+            self.clock_drift_quadratic_per_s,
+            1e-3,
+        );
         lim(c, "heading_bias_deg", self.heading_bias_deg, 10.0);
         let vec3 = |c: &mut Checker, key: &str, v: Option<[f64; 3]>, max: f64| {
             for (i, x) in v.iter().flatten().enumerate() {
@@ -91,16 +96,36 @@ impl Effects {
         };
         let one = |v: Option<f64>| v.map(|x| vec![x]);
         add("attitude_latency_s", one(self.attitude_latency_s), "s");
-        add("boresight_error_deg", self.boresight_error_deg.map(Vec::from), "deg");
-        add("lever_arm_error_m", self.lever_arm_error_m.map(Vec::from), "m");
+        add(
+            "boresight_error_deg",
+            self.boresight_error_deg.map(Vec::from),
+            "deg",
+        );
+        add(
+            "lever_arm_error_m",
+            self.lever_arm_error_m.map(Vec::from),
+            "m",
+        );
         add("range_zero_error_m", one(self.range_zero_error_m), "m");
         add("range_scale_ppm", one(self.range_scale_ppm), "ppm");
         add("encoder_offset_deg", one(self.encoder_offset_deg), "deg");
         add("cone_error_deg", one(self.cone_error_deg), "deg");
         add("clock_drift_ppm", one(self.clock_drift_ppm), "ppm");
-        add("clock_drift_quadratic_per_s", one(self.clock_drift_quadratic_per_s), "1/s");
-        add("mirror_wobble_s", self.mirror_wobble_s.map(Vec::from), "s, s");
-        add("outage_drift_mps", self.outage_drift_mps.map(Vec::from), "m/s");
+        add(
+            "clock_drift_quadratic_per_s",
+            one(self.clock_drift_quadratic_per_s),
+            "1/s",
+        );
+        add(
+            "mirror_wobble_s",
+            self.mirror_wobble_s.map(Vec::from),
+            "s, s",
+        );
+        add(
+            "outage_drift_mps",
+            self.outage_drift_mps.map(Vec::from),
+            "m/s",
+        );
         add("heading_bias_deg", one(self.heading_bias_deg), "deg");
         out
     }

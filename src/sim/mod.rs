@@ -11,11 +11,11 @@
 pub mod dynamics;
 pub mod effects;
 pub mod nav;
+mod outputs;
 pub mod route;
 pub mod scanner;
 pub mod scenario;
 pub mod scene;
-mod outputs;
 pub mod world;
 
 pub use outputs::{read_truth_points, TRUTH_HEADER_BYTES, TRUTH_MAGIC, TRUTH_RECORD_BYTES};
@@ -77,6 +77,8 @@ pub mod files {
     pub const TRUTH_SBET: &str = "truth.sbet";
     /// Binary profiles.
     pub const PROFILES: &str = "profiles.bin";
+    /// Profiles as CSV (on request).
+    pub const PROFILES_CSV: &str = "profiles.csv";
     /// Per-return true ECEF coordinates.
     pub const TRUTH_POINTS: &str = "truth_points.bin";
     /// Sync targets and spheres.
@@ -100,11 +102,6 @@ pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Resu
 
 /// Simulates an already loaded scenario (see [`simulate`]).
 pub fn simulate_scenario(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
-    if opts.profiles_csv || sc.output.profiles_csv {
-        return Err(Error::Invalid(
-            "CSV profile output is not available yet (needs io::profiles_csv)".into(),
-        ));
-    }
     match opts.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -140,6 +137,10 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
     let model = ScannerModel::new(sc);
     let scan = scan(sc, &model, &world, frame, route.clone(), out_dir, opts)?;
     written.push(files::PROFILES);
+    if opts.profiles_csv || sc.output.profiles_csv {
+        crate::io::profiles_csv::export_csv(&p(files::PROFILES), &p(files::PROFILES_CSV))?;
+        written.push(files::PROFILES_CSV);
+    }
     if sc.output.truth_points {
         written.push(files::TRUTH_POINTS);
     }
@@ -152,7 +153,11 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
         sbet_records: nav_counts.sbet_records,
         elapsed_s: started.elapsed().as_secs_f64(),
         out_dir: out_dir.to_path_buf(),
-        files: written.iter().map(|s| s.to_string()).chain([files::TRUTH_JSON.into()]).collect(),
+        files: written
+            .iter()
+            .map(|s| s.to_string())
+            .chain([files::TRUTH_JSON.into()])
+            .collect(),
     };
     outputs::write_truth_json(sc, &model, &route, &nav_counts, &summary, out_dir)?;
     Ok(summary)
@@ -200,7 +205,9 @@ fn scan(
     let mut na = n_first;
     while na < n_end {
         let nb = (na + block).min(n_end);
-        let t_lo = model.true_time(na, model.beta_of(0)).min(model.true_time(na, 0.0));
+        let t_lo = model
+            .true_time(na, model.beta_of(0))
+            .min(model.true_time(na, 0.0));
         let t_hi = model.true_time(nb - 1, model.beta_of(model.points_per_profile() - 1));
         let k_lo = (((t_lo - sc.start_time_s) * rate).floor() as u64).saturating_sub(2);
         let k_hi = ((t_hi - sc.start_time_s) * rate).ceil() as u64 + 2;

@@ -102,7 +102,17 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
     let tau = fx.attitude_latency_s.unwrap_or(0.0);
     let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x0A7E_0000_0000_0003);
     let mut gm: Vec<GaussMarkov> = (0..6)
-        .map(|i| GaussMarkov::new(if i < 3 { e.position_tau_s } else { e.attitude_tau_s }, dt, &mut rng))
+        .map(|i| {
+            GaussMarkov::new(
+                if i < 3 {
+                    e.position_tau_s
+                } else {
+                    e.attitude_tau_s
+                },
+                dt,
+                &mut rng,
+            )
+        })
         .collect();
     let sig = [
         e.position_sigma_m[0],
@@ -211,7 +221,10 @@ impl Window {
     fn attitude_at(&self, t: f64, start: f64, rate: f64) -> (f64, f64, f64) {
         let k = ((t - start) * rate).floor().max(0.0) as u64;
         let k = k.clamp(self.base, self.base + self.recs.len() as u64 - 2);
-        let (a, b) = (NavSample::from_sbet(&self.get(k)), NavSample::from_sbet(&self.get(k + 1)));
+        let (a, b) = (
+            NavSample::from_sbet(&self.get(k)),
+            NavSample::from_sbet(&self.get(k + 1)),
+        );
         let s = interpolate(&a, &b, t.max(start));
         roll_pitch_heading(&s.q_b_to_n)
     }

@@ -65,12 +65,18 @@ fn header(count: u64) -> [u8; TRUTH_HEADER_BYTES] {
 pub fn read_truth_points(path: &Path) -> Result<Vec<[f64; 3]>> {
     let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if b.len() < TRUTH_HEADER_BYTES || &b[0..8] != TRUTH_MAGIC {
-        return Err(Error::bad_file(path, "not a kinescan truth sidecar (bad magic)"));
+        return Err(Error::bad_file(
+            path,
+            "not a kinescan truth sidecar (bad magic)",
+        ));
     }
     let count = u64::from_le_bytes(b[24..32].try_into().expect("8 bytes")) as usize;
     let body = &b[TRUTH_HEADER_BYTES..];
     if body.len() != count * TRUTH_RECORD_BYTES {
-        return Err(Error::bad_file(path, format!("header says {count} records, size disagrees")));
+        return Err(Error::bad_file(
+            path,
+            format!("header says {count} records, size disagrees"),
+        ));
     }
     let f = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("8 bytes"));
     Ok(body
@@ -109,10 +115,21 @@ pub(crate) fn write_references(
         .collect();
     write_control_points(&out_dir.join(files::CONTROL_POINTS), &points)?;
     let mut patches = Vec::new();
-    let curb = if sc.scene.kind == SceneKind::Streets { sc.scene.curb_height_m } else { 0.0 };
+    let curb = if sc.scene.kind == SceneKind::Streets {
+        sc.scene.curb_height_m
+    } else {
+        0.0
+    };
     let scene = &world.scene;
     for (id, obj) in scene.objects.iter().enumerate() {
-        let Shape::Box { centre, r_l_to_enu, half_m } = obj.shape else { continue };
+        let Shape::Box {
+            centre,
+            r_l_to_enu,
+            half_m,
+        } = obj.shape
+        else {
+            continue;
+        };
         if obj.class != super::scene::Class::Building {
             continue;
         }
@@ -126,14 +143,29 @@ pub(crate) fn write_references(
             let half_len = half_m[1 - axis];
             let c = centre + normal * half_m[axis];
             let ends = [c + along * half_len, c - along * half_len];
-            let low = ends.iter().map(|e| scene.ground_z(e.x, e.y)).fold(f64::MIN, f64::max) + curb;
+            let low = ends
+                .iter()
+                .map(|e| scene.ground_z(e.x, e.y))
+                .fold(f64::MIN, f64::max)
+                + curb;
             let top = centre.z + half_m.z;
             let mid = Vector3::new(c.x, c.y, (low + top) / 2.0);
-            patches.push(patch(format!("FAC{id}_{face}"), &frame, mid, normal.into_owned(), half_len, (top - low) / 2.0));
+            patches.push(patch(
+                format!("FAC{id}_{face}"),
+                &frame,
+                mid,
+                normal.into_owned(),
+                half_len,
+                (top - low) / 2.0,
+            ));
         }
     }
     let scan_end_s = sc.duration_s - sc.scanner.end_margin_s;
-    let driven = if scan_end_s >= route.lap_s() { route.length_m() } else { route.motion(scan_end_s).s_m };
+    let driven = if scan_end_s >= route.lap_s() {
+        route.length_m()
+    } else {
+        route.motion(scan_end_s).s_m
+    };
     let mut s = 10.0;
     let up = scene.ground_normal();
     while s < driven.min(route.length_m()) - 10.0 {
@@ -141,13 +173,27 @@ pub(crate) fn write_references(
         let off = sc.vehicle.lane_offset_m;
         let (x, y) = (p.xy[0] - p.dir[1] * off, p.xy[1] + p.dir[0] * off);
         let c = Vector3::new(x, y, scene.ground_z(x, y));
-        patches.push(patch(format!("GND{}", patches.len()), &frame, c, up, 1.5, 1.5));
+        patches.push(patch(
+            format!("GND{}", patches.len()),
+            &frame,
+            c,
+            up,
+            1.5,
+            1.5,
+        ));
         s += 20.0;
     }
     write_patches(&out_dir.join(files::PATCHES), &patches)
 }
 
-fn patch(id: String, frame: &Frame, c: Vector3<f64>, n: Vector3<f64>, hl: f64, hh: f64) -> PlanarPatch {
+fn patch(
+    id: String,
+    frame: &Frame,
+    c: Vector3<f64>,
+    n: Vector3<f64>,
+    hl: f64,
+    hh: f64,
+) -> PlanarPatch {
     let g = ecef_to_geodetic(&frame.to_ecef(&c));
     let n_local = r_enu_to_e(g.lat_rad, g.lon_rad).transpose() * (frame.r_enu_to_e * n);
     let n_local = n_local.normalize();

@@ -97,7 +97,10 @@ impl Route {
     /// Path geometry at arc length `s` (wrapped into the lap).
     pub fn at(&self, s: f64) -> PathPoint {
         let s = s.rem_euclid(self.length_m);
-        let i = self.elements.partition_point(|e| e.1 <= s).min(self.elements.len() - 1);
+        let i = self
+            .elements
+            .partition_point(|e| e.1 <= s)
+            .min(self.elements.len() - 1);
         let (s0, _, el) = self.elements[i];
         let ds = s - s0;
         match el {
@@ -123,7 +126,11 @@ impl Route {
         let t = t.rem_euclid(self.lap_s);
         let n = self.v.len();
         // Last grid point departed at or before t.
-        let i = self.depart.partition_point(|&d| d <= t).saturating_sub(1).min(n - 2);
+        let i = self
+            .depart
+            .partition_point(|&d| d <= t)
+            .saturating_sub(1)
+            .min(n - 2);
         if t < self.depart[i] {
             return Motion {
                 s_m: i as f64 * DS_M,
@@ -150,8 +157,15 @@ impl Route {
         let n = (self.length_m / DS_M).ceil() as usize + 1;
         let mut v: Vec<f64> = (0..n)
             .map(|i| {
-                let k = self.at((i as f64 * DS_M).min(self.length_m - 1e-9)).curvature.abs();
-                let corner = if k > 0.0 { (cfg.max_lateral_acc_mps2 / k).sqrt() } else { f64::INFINITY };
+                let k = self
+                    .at((i as f64 * DS_M).min(self.length_m - 1e-9))
+                    .curvature
+                    .abs();
+                let corner = if k > 0.0 {
+                    (cfg.max_lateral_acc_mps2 / k).sqrt()
+                } else {
+                    f64::INFINITY
+                };
                 cfg.max_speed_mps.min(corner)
             })
             .collect();
@@ -271,7 +285,16 @@ fn build_elements(c: &[[f64; 2]], r: f64) -> std::result::Result<Vec<(f64, f64, 
             let normal = [-u[1] * sense, u[0] * sense];
             let centre = [start[0] + normal[0] * r, start[1] + normal[1] * r];
             let a0 = (start[1] - centre[1]).atan2(start[0] - centre[0]);
-            push(&mut out, r * turn[j].abs(), Element::Arc { c: centre, r, a0, sense });
+            push(
+                &mut out,
+                r * turn[j].abs(),
+                Element::Arc {
+                    c: centre,
+                    r,
+                    a0,
+                    sense,
+                },
+            );
         }
     }
     Ok(out)
@@ -307,7 +330,10 @@ mod tests {
     #[test]
     fn speed_respects_limits_and_stops() {
         let mut cfg = square();
-        cfg.stops.push(super::super::scenario::StopCfg { at_m: 150.0, dwell_s: 3.0 });
+        cfg.stops.push(super::super::scenario::StopCfg {
+            at_m: 150.0,
+            dwell_s: 3.0,
+        });
         let r = Route::new(&cfg, 0.0, "t").unwrap();
         let mut prev = r.motion(0.0);
         let dt = 0.01;

@@ -448,9 +448,11 @@ impl Checker<'_> {
 
 impl SceneCfg {
     fn check(&self, c: &mut Checker) {
-        c.test("scene.blocks", self.blocks.iter().all(|&b| (1..=50).contains(&b)), || {
-            format!("each count must be 1..=50, got {:?}", self.blocks)
-        });
+        c.test(
+            "scene.blocks",
+            self.blocks.iter().all(|&b| (1..=50).contains(&b)),
+            || format!("each count must be 1..=50, got {:?}", self.blocks),
+        );
         for (i, v) in self.block_size_m.iter().enumerate() {
             c.range(&format!("scene.block_size_m[{i}]"), *v, 20.0, 2000.0);
         }
@@ -458,12 +460,24 @@ impl SceneCfg {
         c.range("scene.sidewalk_width_m", self.sidewalk_width_m, 0.5, 20.0);
         c.range("scene.curb_height_m", self.curb_height_m, 0.0, 0.5);
         c.finite("scene.ground_slope", &self.ground_slope);
-        c.test("scene.ground_slope", self.ground_slope.iter().all(|g| g.abs() <= 0.15), || {
-            format!("each slope must be within +-0.15, got {:?}", self.ground_slope)
-        });
+        c.test(
+            "scene.ground_slope",
+            self.ground_slope.iter().all(|g| g.abs() <= 0.15),
+            || {
+                format!(
+                    "each slope must be within +-0.15, got {:?}",
+                    self.ground_slope
+                )
+            },
+        );
         c.interval("scene.building_height_m", self.building_height_m);
         c.interval("scene.building_length_m", self.building_length_m);
-        c.range("scene.facade_max_skew_deg", self.facade_max_skew_deg, 0.0, 30.0);
+        c.range(
+            "scene.facade_max_skew_deg",
+            self.facade_max_skew_deg,
+            0.0,
+            30.0,
+        );
         c.nonneg("scene.pole_spacing_m", self.pole_spacing_m);
         c.range("scene.pole_radius_m", self.pole_radius_m, 0.01, 2.0);
         c.range("scene.pole_height_m", self.pole_height_m, 0.5, 50.0);
@@ -486,10 +500,20 @@ impl RouteCfg {
         c.finite("route.waypoints_m", &flat);
         c.range("route.corner_radius_m", self.corner_radius_m, 2.0, 500.0);
         c.range("route.max_speed_mps", self.max_speed_mps, 0.5, 20.0);
-        c.range("route.max_lateral_acc_mps2", self.max_lateral_acc_mps2, 0.1, 8.0);
+        c.range(
+            "route.max_lateral_acc_mps2",
+            self.max_lateral_acc_mps2,
+            0.1,
+            8.0,
+        );
         c.range("route.max_acc_mps2", self.max_acc_mps2, 0.1, 8.0);
         c.range("route.max_decel_mps2", self.max_decel_mps2, 0.1, 10.0);
-        c.range("route.lap_start_dwell_s", self.lap_start_dwell_s, 0.0, 3600.0);
+        c.range(
+            "route.lap_start_dwell_s",
+            self.lap_start_dwell_s,
+            0.0,
+            3600.0,
+        );
         for (i, s) in self.stops.iter().enumerate() {
             c.nonneg(&format!("route.stops[{i}].at_m"), s.at_m);
             c.range(&format!("route.stops[{i}].dwell_s"), s.dwell_s, 0.0, 3600.0);
@@ -501,39 +525,78 @@ impl VehicleCfg {
     fn check(&self, c: &mut Checker) {
         c.range("vehicle.imu_height_m", self.imu_height_m, 0.3, 10.0);
         c.range("vehicle.lane_offset_m", self.lane_offset_m, -20.0, 20.0);
-        c.range("vehicle.roll_per_lateral_acc_deg", self.roll_per_lateral_acc_deg, 0.0, 5.0);
+        c.range(
+            "vehicle.roll_per_lateral_acc_deg",
+            self.roll_per_lateral_acc_deg,
+            0.0,
+            5.0,
+        );
         let p = self.pitch_per_longitudinal_acc_deg;
         c.range("vehicle.pitch_per_longitudinal_acc_deg", p, 0.0, 5.0);
-        c.range("vehicle.body_time_constant_s", self.body_time_constant_s, 0.0, 10.0);
+        c.range(
+            "vehicle.body_time_constant_s",
+            self.body_time_constant_s,
+            0.0,
+            10.0,
+        );
         for (i, v) in self.vibration_deg.iter().enumerate() {
             c.range(&format!("vehicle.vibration_deg[{i}]"), *v, 0.0, 2.0);
         }
-        c.range("vehicle.vibration_vertical_m", self.vibration_vertical_m, 0.0, 0.1);
+        c.range(
+            "vehicle.vibration_vertical_m",
+            self.vibration_vertical_m,
+            0.0,
+            0.1,
+        );
         c.range("vehicle.nav_rate_hz", self.nav_rate_hz, 200.0, 2000.0);
     }
 }
 
 impl ScannerCfg {
     fn check(&self, c: &mut Checker) {
-        c.range("scanner.period_s", self.period_s, 1.0 / 250.0 - 1e-12, 1.0 / 33.0 + 1e-12);
-        c.test("scanner.points_per_profile", (1..=100_000).contains(&self.points_per_profile), || {
-            format!("must be 1..=100000, got {}", self.points_per_profile)
-        });
+        c.range(
+            "scanner.period_s",
+            self.period_s,
+            1.0 / 250.0 - 1e-12,
+            1.0 / 33.0 + 1e-12,
+        );
+        c.test(
+            "scanner.points_per_profile",
+            (1..=100_000).contains(&self.points_per_profile),
+            || format!("must be 1..=100000, got {}", self.points_per_profile),
+        );
         c.finite("scanner.beta_start_deg", &[self.beta_start_deg]);
         c.test("scanner.direction", self.direction.abs() == 1, || {
             format!("must be +1 or -1, got {}", self.direction)
         });
         c.range("scanner.alpha0_deg", self.alpha0_deg, -45.0, 45.0);
         c.range("scanner.max_range_m", self.max_range_m, 1.0, 5000.0);
-        c.range("scanner.min_range_m", self.min_range_m, 0.0, self.max_range_m.max(0.0));
+        c.range(
+            "scanner.min_range_m",
+            self.min_range_m,
+            0.0,
+            self.max_range_m.max(0.0),
+        );
         c.range("scanner.sigma_range_m", self.sigma_range_m, 0.0, 1.0);
         c.range("scanner.sigma_angle_deg", self.sigma_angle_deg, 0.0, 1.0);
-        c.range("scanner.dropout_probability", self.dropout_probability, 0.0, 1.0);
+        c.range(
+            "scanner.dropout_probability",
+            self.dropout_probability,
+            0.0,
+            1.0,
+        );
         c.pos("scanner.intensity_ref_range_m", self.intensity_ref_range_m);
         c.finite("scanner.lever_arm_b_m", &self.lever_arm_b_m);
-        c.test("scanner.lever_arm_b_m", self.lever_arm_b_m.iter().all(|v| v.abs() < 10.0), || {
-            format!("each component must be within +-10 m, got {:?}", self.lever_arm_b_m)
-        });
+        c.test(
+            "scanner.lever_arm_b_m",
+            self.lever_arm_b_m.iter().all(|v| v.abs() < 10.0),
+            || {
+                format!(
+                    "each component must be within +-10 m, got {:?}",
+                    self.lever_arm_b_m
+                )
+            },
+        );
         c.finite("scanner.boresight_deg", &self.boresight_deg);
         c.range("scanner.range_zero_m", self.range_zero_m, -10.0, 10.0);
         c.nonneg("scanner.t0_offset_s", self.t0_offset_s);
@@ -547,22 +610,39 @@ impl NavErrorCfg {
             c.range(&format!("nav_errors.position_sigma_m[{i}]"), *v, 0.0, 100.0);
         }
         for (i, v) in self.attitude_sigma_deg.iter().enumerate() {
-            c.range(&format!("nav_errors.attitude_sigma_deg[{i}]"), *v, 0.0, 10.0);
+            c.range(
+                &format!("nav_errors.attitude_sigma_deg[{i}]"),
+                *v,
+                0.0,
+                10.0,
+            );
         }
         c.pos("nav_errors.position_tau_s", self.position_tau_s);
         c.pos("nav_errors.attitude_tau_s", self.attitude_tau_s);
         for (i, o) in self.outages_s.iter().enumerate() {
-            c.test(&format!("nav_errors.outages_s[{i}]"), o[0] >= 0.0 && o[1] > o[0], || {
-                format!("must be [start, end] with 0 <= start < end, got {o:?}")
-            });
+            c.test(
+                &format!("nav_errors.outages_s[{i}]"),
+                o[0] >= 0.0 && o[1] > o[0],
+                || format!("must be [start, end] with 0 <= start < end, got {o:?}"),
+            );
         }
-        c.range("nav_errors.outage_sigma_factor", self.outage_sigma_factor, 1.0, 1000.0);
+        c.range(
+            "nav_errors.outage_sigma_factor",
+            self.outage_sigma_factor,
+            1.0,
+            1000.0,
+        );
         c.nonneg("nav_errors.velocity_sigma_mps", self.velocity_sigma_mps);
         let ratio = nav_rate_hz / self.smrmsg_rate_hz;
         c.test(
             "nav_errors.smrmsg_rate_hz",
             self.smrmsg_rate_hz > 0.0 && (ratio - ratio.round()).abs() < 1e-9 && ratio >= 1.0,
-            || format!("must divide vehicle.nav_rate_hz ({nav_rate_hz}), got {}", self.smrmsg_rate_hz),
+            || {
+                format!(
+                    "must divide vehicle.nav_rate_hz ({nav_rate_hz}), got {}",
+                    self.smrmsg_rate_hz
+                )
+            },
         );
     }
 }
@@ -584,7 +664,11 @@ fn toml_error(source: &str, mut e: toml::de::Error) -> Error {
             .map(str::to_string)
     };
     if let Some(f) = field("unknown field `").or_else(|| field("missing field `")) {
-        key = if key.is_empty() { f } else { format!("{key}.{f}") };
+        key = if key.is_empty() {
+            f
+        } else {
+            format!("{key}.{f}")
+        };
     }
     if key.is_empty() {
         key = "(document)".into();

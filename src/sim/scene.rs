@@ -210,7 +210,13 @@ impl Scene {
         best
     }
 
-    fn cast_ground(&self, o: &Vector3<f64>, d: &Vector3<f64>, t_min: f64, t_max: f64) -> Option<Hit> {
+    fn cast_ground(
+        &self,
+        o: &Vector3<f64>,
+        d: &Vector3<f64>,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<Hit> {
         let [gx, gy] = self.ground_slope;
         // Plane f(p) = z - gx e - gy n = 0.
         let f0 = o.z - gx * o.x - gy * o.y;
@@ -275,9 +281,8 @@ impl Grid {
             max = [cell_m; 2];
         }
         let n = [0, 1].map(|k| (((max[k] - min[k]) / cell_m).ceil() as usize).max(1));
-        let cell_of = |v: f64, k: usize| {
-            (((v - min[k]) / cell_m).floor().max(0.0) as usize).min(n[k] - 1)
-        };
+        let cell_of =
+            |v: f64, k: usize| (((v - min[k]) / cell_m).floor().max(0.0) as usize).min(n[k] - 1);
         let mut lists: Vec<Vec<u32>> = vec![Vec::new(); n[0] * n[1]];
         for (id, b) in boxes.iter().enumerate() {
             for cy in cell_of(b[1], 1)..=cell_of(b[3], 1) {
@@ -380,20 +385,37 @@ fn intersect(s: &Shape, o: &Vector3<f64>, d: &Vector3<f64>, t_min: f64, t_max: f
                     let z = o.z + d.z * t;
                     if t > t_min && t < t_max && z >= z0 && z <= z1 {
                         let n = Vector3::new(ox + d.x * t, oy + d.y * t, 0.0) / r;
-                        best = Some(Hit { t_m: t, object: 0, face: 0, normal: n });
+                        best = Some(Hit {
+                            t_m: t,
+                            object: 0,
+                            face: 0,
+                            normal: n,
+                        });
                     }
                 }
             }
             if d.z < 0.0 && o.z > z1 {
                 let t = (z1 - o.z) / d.z;
                 let (px, py) = (ox + d.x * t, oy + d.y * t);
-                if t > t_min && t < t_max && px * px + py * py <= r * r && best.is_none_or(|h| t < h.t_m) {
-                    best = Some(Hit { t_m: t, object: 0, face: 1, normal: Vector3::z() });
+                if t > t_min
+                    && t < t_max
+                    && px * px + py * py <= r * r
+                    && best.is_none_or(|h| t < h.t_m)
+                {
+                    best = Some(Hit {
+                        t_m: t,
+                        object: 0,
+                        face: 1,
+                        normal: Vector3::z(),
+                    });
                 }
             }
             best
         }
-        Shape::Sphere { centre, radius_m: r } => {
+        Shape::Sphere {
+            centre,
+            radius_m: r,
+        } => {
             let oc = o - centre;
             let b = oc.dot(d);
             let disc = b * b - (oc.norm_squared() - r * r);
@@ -446,13 +468,20 @@ mod tests {
                 let c = Vector3::new(i as f64 * 7.0, j as f64 * 5.0, 1.5 + (i % 3) as f64);
                 objs.push(unit_box(c));
                 objs.push(Object {
-                    shape: Shape::Sphere { centre: c + Vector3::new(3.0, 2.0, 0.0), radius_m: 0.5 },
+                    shape: Shape::Sphere {
+                        centre: c + Vector3::new(3.0, 2.0, 0.0),
+                        radius_m: 0.5,
+                    },
                     class: Class::Sphere,
                     reflectance: 0.8,
                     porosity: 0.0,
                 });
                 objs.push(Object {
-                    shape: Shape::Cylinder { centre_xy: [c.x - 2.5, c.y], z_m: [-1.0, 5.0], radius_m: 0.2 },
+                    shape: Shape::Cylinder {
+                        centre_xy: [c.x - 2.5, c.y],
+                        z_m: [-1.0, 5.0],
+                        radius_m: 0.2,
+                    },
                     class: Class::Pole,
                     reflectance: 0.4,
                     porosity: 0.0,
@@ -483,13 +512,22 @@ mod tests {
         let bx = unit_box(Vector3::new(5.0, 0.0, 0.0)).shape;
         let h = intersect(&bx, &o, &d, 0.0, 100.0).unwrap();
         assert!((h.t_m - 4.0).abs() < 1e-12 && (h.normal + Vector3::x()).norm() < 1e-12);
-        let cyl = Shape::Cylinder { centre_xy: [5.0, 0.0], z_m: [-1.0, 1.0], radius_m: 0.5 };
+        let cyl = Shape::Cylinder {
+            centre_xy: [5.0, 0.0],
+            z_m: [-1.0, 1.0],
+            radius_m: 0.5,
+        };
         assert!((intersect(&cyl, &o, &d, 0.0, 100.0).unwrap().t_m - 4.5).abs() < 1e-12);
-        let sph = Shape::Sphere { centre: Vector3::new(5.0, 0.0, 0.0), radius_m: 2.0 };
+        let sph = Shape::Sphere {
+            centre: Vector3::new(5.0, 0.0, 0.0),
+            radius_m: 2.0,
+        };
         assert!((intersect(&sph, &o, &d, 0.0, 100.0).unwrap().t_m - 3.0).abs() < 1e-12);
         let scene = Scene::new([0.1, 0.0], 0.2, vec![], 4.0);
         let down = Vector3::new(0.0, 0.0, -1.0);
-        let g = scene.cast(&Vector3::new(10.0, 0.0, 3.0), &down, 0.0, 100.0, 0).unwrap();
+        let g = scene
+            .cast(&Vector3::new(10.0, 0.0, 3.0), &down, 0.0, 100.0, 0)
+            .unwrap();
         assert!((g.t_m - 2.0).abs() < 1e-12 && g.object == GROUND);
     }
 }

@@ -46,7 +46,12 @@ pub fn build(cfg: &SceneCfg, seed: u64) -> World {
         SceneKind::Streets => b.streets(),
         SceneKind::ParkingLot => b.parking_lot(),
     }
-    let scene = Scene::new(cfg.ground_slope, cfg.reflectance[0], b.objects, cfg.grid_cell_m);
+    let scene = Scene::new(
+        cfg.ground_slope,
+        cfg.reflectance[0],
+        b.objects,
+        cfg.grid_cell_m,
+    );
     World {
         scene,
         landmarks: b.landmarks,
@@ -169,17 +174,26 @@ impl Builder<'_> {
         let len = (b[0] - a[0]).hypot(b[1] - a[1]);
         let u = [(b[0] - a[0]) / len, (b[1] - a[1]) / len];
         let inward = [-u[1], u[0]];
-        let at = |s: f64, d: f64| [a[0] + u[0] * s + inward[0] * d, a[1] + u[1] * s + inward[1] * d];
+        let at = |s: f64, d: f64| {
+            [
+                a[0] + u[0] * s + inward[0] * d,
+                a[1] + u[1] * s + inward[1] * d,
+            ]
+        };
         // Buildings, leaving the corners free.
         let margin = 15.0;
         let mut s = margin;
         loop {
-            let l = self.rng.random_range(c.building_length_m[0]..=c.building_length_m[1]);
+            let l = self
+                .rng
+                .random_range(c.building_length_m[0]..=c.building_length_m[1]);
             if s + l > len - margin {
                 break;
             }
             let depth = self.rng.random_range(8.0..15.0);
-            let height = self.rng.random_range(c.building_height_m[0]..=c.building_height_m[1]);
+            let height = self
+                .rng
+                .random_range(c.building_height_m[0]..=c.building_height_m[1]);
             let skew = self.rng.random_range(-1.0..=1.0) * c.facade_max_skew_deg.to_radians();
             let front = at(s + l / 2.0, walk + 0.2 + l / 2.0 * skew.sin().abs());
             self.building(front, u, skew, [l, depth, height], curb);
@@ -215,7 +229,8 @@ impl Builder<'_> {
         let depth_dir = r * Vector3::y();
         let g = self.ground(front[0], front[1]);
         let (bottom, top) = (g - 5.0, g + curb + size[2]);
-        let centre = Vector3::new(front[0], front[1], (bottom + top) / 2.0) + depth_dir * (size[1] / 2.0);
+        let centre =
+            Vector3::new(front[0], front[1], (bottom + top) / 2.0) + depth_dir * (size[1] / 2.0);
         self.push(
             Shape::Box {
                 centre,

@@ -57,7 +57,11 @@ pub fn configured(dir: &Path) -> (Sensor, ScannerClock) {
     let text = std::fs::read_to_string(dir.join("truth.json")).unwrap();
     let j: serde_json::Value = serde_json::from_str(&text).unwrap();
     let v3 = |v: &serde_json::Value| {
-        Vector3::new(v[0].as_f64().unwrap(), v[1].as_f64().unwrap(), v[2].as_f64().unwrap())
+        Vector3::new(
+            v[0].as_f64().unwrap(),
+            v[1].as_f64().unwrap(),
+            v[2].as_f64().unwrap(),
+        )
     };
     let s = &j["configured_sensor"];
     let sensor = Sensor::new(
@@ -101,7 +105,12 @@ pub struct Pair {
 /// latency 0) and pairs it with its truth. Also checks missing returns are marked in both.
 pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
     let (sensor, clock) = configured(dir);
-    let traj = Trajectory::open(&dir.join("trajectory.sbet"), None, TrajectoryOptions::default()).unwrap();
+    let traj = Trajectory::open(
+        &dir.join("trajectory.sbet"),
+        None,
+        TrajectoryOptions::default(),
+    )
+    .unwrap();
     let mut cursor = PoseCursor::new(&traj, 0.0, 0.0);
     let prof = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
     let truth = read_truth_points(&dir.join("truth_points.bin")).unwrap();
@@ -109,7 +118,11 @@ pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
     let mut out = Vec::new();
     for (i, tr) in truth.iter().enumerate() {
         let r = prof.get(i);
-        assert_eq!(r.range_m == 0.0, tr[0].is_nan(), "return {i}: missing marks disagree");
+        assert_eq!(
+            r.range_m == 0.0,
+            tr[0].is_nan(),
+            "return {i}: missing marks disagree"
+        );
         if r.range_m == 0.0 {
             continue;
         }
@@ -119,7 +132,11 @@ pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
             clock.time_of(r.profile, r.beta_rad)
         };
         let pose = cursor.at(t).unwrap();
-        let x = georeference(&pose, &sensor, &point_s(&sensor, r.range_m, sensor.alpha0_rad, r.beta_rad));
+        let x = georeference(
+            &pose,
+            &sensor,
+            &point_s(&sensor, r.range_m, sensor.alpha0_rad, r.beta_rad),
+        );
         out.push(Pair {
             profile: r.profile,
             beta_rad: r.beta_rad,
