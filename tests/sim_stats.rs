@@ -59,7 +59,7 @@ fn gauss_markov_errors_have_their_stated_statistics() {
     let t_start = truth.time_s(0);
     let dt = truth.time_s(1) - t_start;
     // Errors normalised by the SMRMSG sigma (linear between records): unit GM processes.
-    let mut series = vec![Vec::with_capacity(nav.len()); 6];
+    let mut series = vec![Vec::new(); 6];
     let mut raw = vec![[Vec::new(), Vec::new()]; 6];
     let every = (smr.time_s(1) - smr.time_s(0)) / dt;
     let every = every.round() as usize;
@@ -91,7 +91,11 @@ fn gauss_markov_errors_have_their_stated_statistics() {
         for i in 0..6 {
             let unit = if i < 3 { 1.0 } else { RAD_PER_ARCMIN };
             let got = s[col(i)] * unit;
-            assert!((got - f * sigma[i]).abs() < 1e-12 * sigma[i], "smrmsg {j} axis {i}: {got} vs {}", f * sigma[i]);
+            assert!(
+                (got - f * sigma[i]).abs() < 1e-12 * sigma[i],
+                "smrmsg {j} axis {i}: {got} vs {}",
+                f * sigma[i]
+            );
         }
     }
     for i in 0..6 {
@@ -100,7 +104,10 @@ fn gauss_markov_errors_have_their_stated_statistics() {
             let rms = (x.iter().map(|v| v * v).sum::<f64>() / x.len() as f64).sqrt();
             let ratio = rms / (f * sigma[i]);
             println!("axis {i} half {half}: sigma ratio {ratio:.4}");
-            assert!((ratio - 1.0).abs() < 0.05, "axis {i} half {half}: sigma ratio {ratio}");
+            assert!(
+                (ratio - 1.0).abs() < 0.05,
+                "axis {i} half {half}: sigma ratio {ratio}"
+            );
         }
         let z = &series[i];
         let num: f64 = z.windows(2).map(|w| w[0] * w[1]).sum();
