@@ -3,6 +3,7 @@
 
 mod calib_cmds;
 mod pipeline_cmds;
+mod sim_cmds;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -25,6 +26,8 @@ enum Command {
     Import(pipeline_cmds::ImportArgs),
     Info(pipeline_cmds::InfoArgs),
     Calibrate(calib_cmds::CalibrateArgs),
+    Simulate(sim_cmds::SimulateArgs),
+    Demo(sim_cmds::DemoArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
@@ -36,6 +39,8 @@ pub fn run() -> ExitCode {
         Command::Import(a) => pipeline_cmds::import(a, cli.quiet),
         Command::Info(a) => pipeline_cmds::info(a),
         Command::Calibrate(a) => calib_cmds::calibrate(a, cli.quiet),
+        Command::Simulate(a) => sim_cmds::simulate(a, cli.quiet),
+        Command::Demo(a) => sim_cmds::demo(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

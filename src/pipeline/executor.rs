@@ -346,8 +346,9 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     })
 }
 
-/// The mapping frame: UTM zone from the first trajectory record unless configured.
-fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
+/// The output mapping frame: UTM zone and hemisphere from the first trajectory record unless
+/// configured.
+pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
     let first = traj.sbet().record(0);
     match *f {
         FrameConfig::Utm { zone, north } => {
@@ -436,18 +437,11 @@ fn georeferencer<'a>(
 }
 
 fn progress_bar(enabled: bool, total: u64) -> indicatif::ProgressBar {
-    use std::io::IsTerminal;
-    if !enabled || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
+    if enabled {
+        crate::progress::bar(total, "georeferencing returns")
+    } else {
+        indicatif::ProgressBar::hidden()
     }
-    let bar = indicatif::ProgressBar::new(total);
-    let style = indicatif::ProgressStyle::with_template(
-        "{spinner} georeferencing [{bar:40}] {human_pos}/{human_len} returns, {per_sec}, eta {eta}",
-    )
-    .expect("static template")
-    .progress_chars("=> ");
-    bar.set_style(style);
-    bar
 }
 
 /// A batch of chunk results, in input order.
