@@ -15,3 +15,4 @@ pub mod georef;
 pub mod pipeline;
 pub mod timing;
 pub mod trajectory;
+pub mod uncertainty;
