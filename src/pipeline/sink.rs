@@ -1,7 +1,7 @@
 //! Where georeferenced points go: one or more LAS files, split per input or by point count,
 //! named predictably, each written atomically.
 
-use super::config::{PipelineConfig, SplitMode};
+use super::config::{PipelineConfig, SplitMode, UncertaintyConfig};
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
@@ -63,11 +63,44 @@ impl SinkSettings {
     }
 }
 
-/// Extra dimensions, in record order (indices into `LasPoint::extra`).
+/// Extra dimensions, in record order (indices into `LasPoint::extra`): `range`, then with
+/// `[uncertainty]` the fields of [`uncertainty_dims`] from index [`uncertainty_first_dim`].
 pub fn extra_dims(c: &PipelineConfig) -> Vec<ExtraDim> {
     let mut dims = Vec::new();
     if c.output.range_dimension {
         dims.push(ExtraDim::f32("range", "measured range rho (m)"));
+    }
+    if let Some(u) = &c.uncertainty {
+        dims.extend(uncertainty_dims(u));
+    }
+    dims
+}
+
+/// Index in `LasPoint::extra` of the first uncertainty dimension.
+pub fn uncertainty_first_dim(c: &PipelineConfig) -> usize {
+    usize::from(c.output.range_dimension)
+}
+
+/// Uncertainty extra dimensions (docs/uncertainty.md): `sigma_x`, `sigma_y`, `sigma_z` (1 sigma
+/// along the file's X, Y, Z, m); with `write_95`, `thu95` and `tvu95` (95% horizontal and
+/// vertical, m); with `write_shares`, `share_<group>` for the six groups (fraction of the 3D
+/// variance, 0-1), in [`crate::uncertainty::Group`] order.
+pub fn uncertainty_dims(u: &UncertaintyConfig) -> Vec<ExtraDim> {
+    let mut dims = vec![
+        ExtraDim::f32("sigma_x", "1-sigma along X (m)"),
+        ExtraDim::f32("sigma_y", "1-sigma along Y (m)"),
+        ExtraDim::f32("sigma_z", "1-sigma along Z (m)"),
+    ];
+    if u.write_95 {
+        dims.push(ExtraDim::f32("thu95", "95% horizontal, 1.7308 sig_r (m)"));
+        dims.push(ExtraDim::f32("tvu95", "95% vertical, 1.96 sigma_z (m)"));
+    }
+    if u.write_shares {
+        for g in crate::uncertainty::Group::ALL {
+            let name = format!("share_{}", g.name());
+            let desc = format!("{} variance share", g.name());
+            dims.push(ExtraDim::f32(&name, &desc));
+        }
     }
     dims
 }

@@ -139,6 +139,9 @@ pub struct SobolIndices {
     pub variance: [f64; N_OUT],
 }
 
+/// First-order and total indices per factor: `[per output component..., combined]`.
+type FirstTotal = (Vec<[f64; N_OUT + 1]>, Vec<[f64; N_OUT + 1]>);
+
 /// Sums for the estimators over a set of base rows: per output, V numerators.
 struct Sums {
     var: [f64; N_OUT],
@@ -195,7 +198,7 @@ impl Evaluations {
     }
 
     /// First-order and total indices (per output and combined) from base rows `rows`.
-    fn indices(&self, rows: &[usize], c: &[f64; N_OUT]) -> (Vec<[f64; 4]>, Vec<[f64; 4]>) {
+    fn indices(&self, rows: &[usize], c: &[f64; N_OUT]) -> FirstTotal {
         let s = self.sums(rows, c);
         let ratio = |num: f64, den: f64| if den > 0.0 { num / den } else { 0.0 };
         let vsum: f64 = s.var.iter().sum();
@@ -230,7 +233,7 @@ impl Evaluations {
             .par_iter()
             .map(|rows| self.indices(rows, &c))
             .collect();
-        let conf = |pick: &dyn Fn(&(Vec<[f64; 4]>, Vec<[f64; 4]>)) -> f64| -> f64 {
+        let conf = |pick: &dyn Fn(&FirstTotal) -> f64| -> f64 {
             if boots.len() < 2 {
                 return f64::NAN;
             }
