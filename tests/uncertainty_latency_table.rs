@@ -11,7 +11,7 @@
 
 use kinescan::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic};
 use kinescan::uncertainty::model::{Input, PointGeometry, N_INPUTS};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 
 /// Table 1: latency (ms), vertical error (cm), horizontal error (cm).
 const TABLE: [(f64, f64, f64); 7] = [
@@ -40,11 +40,11 @@ fn geometry() -> PointGeometry {
         lat_rad: g.lat_rad,
         lon_rad: g.lon_rad,
         h_m: g.h_m,
-        rph_rad: Vector3::zeros(),
+        r_b_to_n: Matrix3::identity(),
         v_n_mps: Vector3::zeros(),
         omega_b_radps: Vector3::new(-10f64.to_radians(), 0.0, 0.0),
         lever_arm_b_m: Vector3::zeros(),
-        boresight_rad: Vector3::zeros(),
+        r_s_to_b: Matrix3::identity(),
         alpha_rad: 0.0,
         beta_rad: (-90f64).to_radians(),
         range_m: 50.0,
@@ -76,9 +76,14 @@ fn exact_model_reproduces_table_1() {
     let g = geometry();
     for (ms, vert, horiz) in TABLE {
         let (v, h) = slope_offsets(&g, ms * 1e-3);
-        println!("{ms:5} ms: vertical {v:7.3} cm (table {vert}), horizontal {h:8.3} cm (table {horiz})");
+        println!(
+            "{ms:5} ms: vertical {v:7.3} cm (table {vert}), horizontal {h:8.3} cm (table {horiz})"
+        );
         assert!((v - vert).abs() <= 0.1, "{ms} ms vertical {v} vs {vert}");
-        assert!((h - horiz).abs() <= 0.1, "{ms} ms horizontal {h} vs {horiz}");
+        assert!(
+            (h - horiz).abs() <= 0.1,
+            "{ms} ms horizontal {h} vs {horiz}"
+        );
     }
 }
 
@@ -98,8 +103,14 @@ fn linear_model_matches_table_1_to_first_order() {
         let second_order = theta / tan_s;
         let v = per_s * ms * 1e-3 * 100.0;
         let h = v / tan_s;
-        assert!((v - vert).abs() <= 0.1 + vert * second_order, "{ms} ms: {v} vs {vert}");
-        assert!((h - horiz).abs() <= 0.1 + horiz * second_order, "{ms} ms: {h} vs {horiz}");
+        assert!(
+            (v - vert).abs() <= 0.1 + vert * second_order,
+            "{ms} ms: {v} vs {vert}"
+        );
+        assert!(
+            (h - horiz).abs() <= 0.1 + horiz * second_order,
+            "{ms} ms: {h} vs {horiz}"
+        );
         // Without the second-order allowance the linear horizontal error misses at 25 ms.
         if ms == 25.0 {
             assert!((h - horiz).abs() > 0.1 + horiz * 0.01);

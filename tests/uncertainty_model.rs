@@ -2,7 +2,8 @@
 //! differences of the exact equation, the linear covariance against Monte Carlo, and the
 //! calibration of the predicted 95% ellipsoid on simulated errors.
 
-use kinescan::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
+use kinescan::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_n_to_e, Geodetic};
+use kinescan::geo::rotations::{r_zyx, zyx_angles};
 use kinescan::uncertainty::model::{PointGeometry, N_INPUTS};
 use kinescan::uncertainty::propagate::covariance_of;
 use nalgebra::{Matrix3, Vector3};
@@ -26,11 +27,11 @@ fn random_geometry(rng: &mut ChaCha8Rng) -> PointGeometry {
         lat_rad: g.lat_rad,
         lon_rad: g.lon_rad,
         h_m: g.h_m,
-        rph_rad: Vector3::new(u(-0.8, 0.8), u(-0.8, 0.8), u(0.0, 2.0 * pi)),
+        r_b_to_n: r_zyx(u(-0.8, 0.8), u(-0.8, 0.8), u(0.0, 2.0 * pi)),
         v_n_mps: Vector3::new(u(-30.0, 30.0), u(-30.0, 30.0), u(-2.0, 2.0)),
         omega_b_radps: Vector3::new(u(-1.0, 1.0), u(-1.0, 1.0), u(-1.0, 1.0)),
         lever_arm_b_m: Vector3::new(u(-2.0, 2.0), u(-2.0, 2.0), u(-2.0, 2.0)),
-        boresight_rad: Vector3::new(u(-pi, pi), u(-1.4, 1.4), u(-pi, pi)),
+        r_s_to_b: r_zyx(u(-pi, pi), u(-1.4, 1.4), u(-pi, pi)),
         alpha_rad: u(-0.3, 0.3),
         beta_rad: u(-pi, pi),
         range_m: u(1.0, 300.0),
@@ -74,8 +75,12 @@ proptest! {
 /// 0.01 deg, range 1 cm, K 1 cm, clock 2 ms, latency 2 ms.
 fn survey_case(rng: &mut ChaCha8Rng) -> (PointGeometry, [f64; N_INPUTS]) {
     let mut g = random_geometry(rng);
-    g.rph_rad.x = 0.1 * (rng.random::<f64>() - 0.5);
-    g.rph_rad.y = 0.1 * (rng.random::<f64>() - 0.5);
+    let heading = 7.0 * rng.random::<f64>();
+    g.r_b_to_n = r_zyx(
+        0.1 * (rng.random::<f64>() - 0.5),
+        0.1 * (rng.random::<f64>() - 0.5),
+        heading,
+    );
     g.range_m = 2.0 + 118.0 * rng.random::<f64>();
     g.omega_b_radps *= 0.3;
     let d = 1f64.to_radians();
@@ -187,21 +192,21 @@ fn predicted_ellipsoid_is_calibrated() {
 fn perturbed(t: &PointGeometry, e: &[f64; N_INPUTS]) -> PointGeometry {
     let dt = e[16];
     let d_n = Vector3::new(e[0], e[1], e[2]) + t.v_n_mps * dt;
-    let r_e = t.r_e_m + kinescan::geo::ellipsoid::r_n_to_e(t.lat_rad, t.lon_rad) * d_n;
-    let g = kinescan::geo::ellipsoid::ecef_to_geodetic(&r_e);
+    let r_e = t.r_e_m + r_n_to_e(t.lat_rad, t.lon_rad) * d_n;
+    let g = ecef_to_geodetic(&r_e);
     let turn = nalgebra::Rotation3::new(t.omega_b_radps * (dt + e[17]));
-    let r =
-        kinescan::geo::rotations::r_zyx(t.rph_rad.x + e[3], t.rph_rad.y + e[4], t.rph_rad.z + e[5])
-            * turn.matrix();
-    let (roll, pitch, heading) = kinescan::geo::rotations::zyx_angles(&r);
+    let add = |r: &Matrix3<f64>, d: [f64; 3]| {
+        let (x, y, z) = zyx_angles(r);
+        r_zyx(x + d[0], y + d[1], z + d[2])
+    };
     PointGeometry {
         r_e_m: r_e,
         lat_rad: g.lat_rad,
         lon_rad: g.lon_rad,
         h_m: g.h_m,
-        rph_rad: Vector3::new(roll, pitch, heading),
+        r_b_to_n: add(&t.r_b_to_n, [e[3], e[4], e[5]]) * turn.matrix(),
         lever_arm_b_m: t.lever_arm_b_m + Vector3::new(e[6], e[7], e[8]),
-        boresight_rad: t.boresight_rad + Vector3::new(e[9], e[10], e[11]),
+        r_s_to_b: add(&t.r_s_to_b, [e[9], e[10], e[11]]),
         alpha_rad: t.alpha_rad + e[12],
         beta_rad: t.beta_rad + e[13],
         range_m: t.range_m + e[14],

@@ -61,7 +61,9 @@ fn clock() -> ScannerClock {
     }
 }
 
-/// Profiles over the whole trajectory, `per_profile` returns each at random beta and range.
+/// Profiles over the whole trajectory, `per_profile` returns each at random beta; ranges of a
+/// parking-lot-like scene (flat ground 2.5 m below the scanner, nothing beyond 80 m, 5 cm of
+/// noise), so consecutive returns of a profile are close as in real data.
 fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
     let mut w = ProfileWriter::create(path, ProfileColumns::default()).unwrap();
     let mut rng = Lcg(7);
@@ -75,7 +77,7 @@ fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
                 profile: n,
                 intensity: 10,
                 beta_rad: beta,
-                range_m: rng.range(2.0, 120.0),
+                range_m: (2.5 / beta.cos().max(0.03)).min(80.0) + rng.range(0.0, 0.05),
                 alpha_rad: 0.0,
                 time_s: 0.0,
             };
@@ -272,13 +274,15 @@ fn written_sigmas_equal_the_library_propagation() {
         let s = cov.sigma_xyz_m();
         let want = [s.x, s.y, s.z, cov.thu95_m(), cov.tvu95_m()];
         let shares = cov.shares();
+        // The pipeline reuses the map axes within 5 m (MapAxesCache): < 1.7e-6 rad here, times
+        // sigma ratios below 10, plus f32 rounding (6e-8).
         for k in 0..5 {
             let rel = (v[1 + k] as f64 / want[k] - 1.0).abs();
             worst = worst.max(rel);
-            assert!(rel < 1e-6, "field {k}: {} vs {}", v[1 + k], want[k]);
+            assert!(rel < 2e-5, "field {k}: {} vs {}", v[1 + k], want[k]);
         }
         for g in 0..6 {
-            assert!((v[6 + g] as f64 - shares[g]).abs() < 1e-6);
+            assert!((v[6 + g] as f64 - shares[g]).abs() < 2e-5);
         }
     }
     println!("LAS sigmas vs library: worst relative difference {worst:e}");
@@ -342,28 +346,38 @@ fn bad_uncertainty_tables_are_refused() {
     }
 }
 
-/// Run time with and without uncertainty on 1.2 M returns (measurement, not run by default:
-/// `cargo test --release --test uncertainty_pipeline -- --ignored --nocapture`).
+/// Run time with and without uncertainty on 1.2 M returns, best of 5 interleaved runs each
+/// (the machine is shared; the minimum is the least disturbed). A measurement, not run by
+/// default: `cargo test --test uncertainty_pipeline -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn benchmark_uncertainty_overhead() {
     let dir = tempfile::tempdir().unwrap();
     write_trajectory(dir.path());
     let raw = write_profiles(&dir.path().join("pass.ksprof"), 600);
-    let mut secs = Vec::new();
-    for u in ["", FULL] {
-        let path = write_pipeline(dir.path(), "traj.smrmsg", u);
-        let loaded = config::load(&path, &[]).unwrap();
-        let start = std::time::Instant::now();
-        let report = run(&loaded, &quiet()).unwrap();
-        let s = start.elapsed().as_secs_f64();
-        println!(
-            "uncertainty {}: {} returns in {s:.2} s, {:.0} returns/s",
-            !u.is_empty(),
-            raw.len(),
-            report.returns_per_second
-        );
-        secs.push(s);
+    let sigmas_only = format!("{FULL}write_95 = false\nwrite_shares = false\n");
+    let cases = [
+        ("none", ""),
+        ("all fields", FULL),
+        ("sigmas only", &sigmas_only),
+    ];
+    let mut best = [f64::INFINITY; 3];
+    for _ in 0..5 {
+        for (k, (_, u)) in cases.iter().enumerate() {
+            let path = write_pipeline(dir.path(), "traj.smrmsg", u);
+            let loaded = config::load(&path, &[]).unwrap();
+            let start = std::time::Instant::now();
+            run(&loaded, &quiet()).unwrap();
+            best[k] = best[k].min(start.elapsed().as_secs_f64());
+        }
     }
-    println!("overhead {:.0}%", (secs[1] / secs[0] - 1.0) * 100.0);
+    for (k, (name, _)) in cases.iter().enumerate() {
+        println!(
+            "uncertainty {name}: {} returns in {:.2} s, {:.0} returns/s, overhead {:.0}%",
+            raw.len(),
+            best[k],
+            raw.len() as f64 / best[k],
+            (best[k] / best[0] - 1.0) * 100.0
+        );
+    }
 }

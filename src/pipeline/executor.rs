@@ -13,7 +13,7 @@ use crate::io::las::LasPoint;
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::{Mirror, ScannerClock};
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
-use crate::uncertainty::model::r_e_to_map_axes;
+use crate::uncertainty::model::MapAxesCache;
 use crate::uncertainty::{propagate, PointCovariance, PointGeometry, UncertaintyInputs};
 use crate::{Error, Result};
 use nalgebra::Vector3;
@@ -144,7 +144,7 @@ impl Georeferencer<'_> {
         &self,
         r: &RawReturn,
         cursor: &mut PoseCursor,
-        sigmas: Option<&mut SigmaCursor>,
+        sigmas: Option<&mut (SigmaCursor, MapAxesCache)>,
     ) -> Result<(LasPoint, f64), RejectReason> {
         let alpha = if self.columns.alpha {
             r.alpha_rad
@@ -163,7 +163,10 @@ impl Georeferencer<'_> {
         }
         let t = self.time_of(r);
         let pose = cursor.at(t)?;
-        let nav_sigma = sigmas.map(|c| c.at(t)).transpose()?;
+        let nav_sigma = match sigmas {
+            Some((cursor, axes)) => Some((cursor.at(t)?, axes)),
+            None => None,
+        };
         let x_e = georeference(
             &pose,
             &self.sensor,
@@ -183,16 +186,10 @@ impl Georeferencer<'_> {
         if self.range_dimension {
             p.extra[0] = r.range_m;
         }
-        if let (Some(u), Some(nav_sigma)) = (&self.uncertainty, nav_sigma) {
+        if let (Some(u), Some((nav_sigma, axes))) = (&self.uncertainty, nav_sigma) {
             let geom = PointGeometry::from_pose(&pose, &self.sensor, alpha, r.beta_rad, r.range_m);
-            let to_map = r_e_to_map_axes(&self.frame, &x_e);
-            let cov = propagate(
-                &geom,
-                &u.inputs,
-                &nav_sigma,
-                self.clock_partials(r),
-                &to_map,
-            );
+            let to_map = axes.at(&x_e);
+            let cov = propagate(&geom, &u.inputs, &nav_sigma, self.clock_partials(r), to_map);
             u.fill(&cov, &mut p.extra);
         }
         Ok((p, t))
@@ -213,7 +210,8 @@ impl Georeferencer<'_> {
         let mut sigmas = self
             .uncertainty
             .as_ref()
-            .and_then(|_| self.traj.sigma_cursor());
+            .and_then(|_| self.traj.sigma_cursor())
+            .map(|c| (c, MapAxesCache::new(self.frame)));
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {

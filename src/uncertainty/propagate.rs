@@ -95,15 +95,22 @@ impl PointCovariance {
 
 /// `Sigma = J diag(sigma^2) J^T` for a Jacobian `j` whose rows are the output axes.
 pub fn covariance_of(j: &Jacobian, sigmas: &[f64; N_INPUTS]) -> PointCovariance {
-    let mut cov = Matrix3::zeros();
+    // Scaled columns c_k = sigma_k J_k: Sigma = sum c_k c_k^T, group variance = sum |c_k|^2.
+    let mut upper = [0.0; 6];
     let mut groups = [0.0; N_GROUPS];
     for (k, s) in sigmas.iter().enumerate() {
-        let col = j.column(k) * *s;
-        cov += col * col.transpose();
-        groups[Input::ALL[k].group() as usize] += col.norm_squared();
+        let (x, y, z) = (j[(0, k)] * s, j[(1, k)] * s, j[(2, k)] * s);
+        upper[0] += x * x;
+        upper[1] += x * y;
+        upper[2] += x * z;
+        upper[3] += y * y;
+        upper[4] += y * z;
+        upper[5] += z * z;
+        groups[Input::ALL[k].group() as usize] += x * x + y * y + z * z;
     }
+    let [xx, xy, xz, yy, yz, zz] = upper;
     PointCovariance {
-        cov_m2: cov,
+        cov_m2: Matrix3::new(xx, xy, xz, xy, yy, yz, xz, yz, zz),
         group_variance_m2: groups,
     }
 }

@@ -13,6 +13,7 @@ use super::model::{Group, Input, PointGeometry, N_INPUTS};
 use super::propagate::UncertaintyInputs;
 use super::sobol::{FactorIndices, SaltelliDesign, SobolIndices, N_OUT};
 use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic};
+use crate::geo::rotations::r_zyx;
 use crate::io::atomic::write_atomic;
 use crate::pipeline::config::UncertaintyConfig;
 use crate::trajectory::NavSigma;
@@ -327,18 +328,19 @@ pub fn study_point(c: &SensitivityConfig, rho: f64) -> PointGeometry {
         lon_rad: p.lon_deg.to_radians(),
         h_m: p.h_m,
     };
-    let rph = Vector3::from(p.rph_deg.map(f64::to_radians));
-    let (sh, ch) = rph.z.sin_cos();
+    let [r, pitch, h] = p.rph_deg.map(f64::to_radians);
+    let [bx, by, bz] = c.sensor.boresight_deg.map(f64::to_radians);
+    let (sh, ch) = h.sin_cos();
     PointGeometry {
         r_e_m: geodetic_to_ecef(g),
         lat_rad: g.lat_rad,
         lon_rad: g.lon_rad,
         h_m: g.h_m,
-        rph_rad: rph,
+        r_b_to_n: r_zyx(r, pitch, h),
         v_n_mps: Vector3::new(ch, sh, 0.0) * p.speed_mps,
         omega_b_radps: Vector3::from(p.body_rate_deg_s.map(f64::to_radians)),
         lever_arm_b_m: c.sensor.lever_arm_b_m.into(),
-        boresight_rad: c.sensor.boresight_deg.map(f64::to_radians).into(),
+        r_s_to_b: r_zyx(bx, by, bz),
         alpha_rad: c.sensor.alpha0_deg.to_radians(),
         beta_rad: (c.points.scanner_height_m / rho).min(1.0).acos(),
         range_m: rho,
