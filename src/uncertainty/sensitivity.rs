@@ -23,6 +23,10 @@ use serde::{Deserialize, Serialize};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// Outputs analysed: displacement along local East, North, Up at the point, and "total" (the
+/// 3D variance: indices weighted by each component's variance).
+pub const OUTPUTS: [&str; N_OUT + 1] = ["east", "north", "up", "total"];
+
 /// Which sigma set: paper 003 Table 1 "expected" or "ideal", or `[custom]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -151,10 +155,10 @@ pub struct FactorRow {
     pub factor: String,
     /// "input" or "group".
     pub kind: &'static str,
-    /// Sobol indices on the total (variance-weighted E, N, U) output.
-    pub sobol: FactorIndices,
-    /// Analytic linear share of the total variance.
-    pub linear_share: f64,
+    /// Sobol indices per output ([`OUTPUTS`]: E, N, U, total = variance-weighted E, N, U).
+    pub sobol: [FactorIndices; N_OUT + 1],
+    /// Analytic linear share of each output's variance.
+    pub linear_share: [f64; N_OUT + 1],
 }
 
 /// Results at one point.
@@ -164,19 +168,21 @@ pub struct PointResult {
     pub range_m: f64,
     /// Mirror angle (deg).
     pub beta_deg: f64,
-    /// Linear 1-sigma along E, N, U (m).
-    pub sigma_enu_m: [f64; 3],
+    /// Linear 1-sigma along E, N, U and in 3D (m).
+    pub sigma_enu_m: [f64; 4],
     /// Monte Carlo 1-sigma along E, N, U (m) from the Sobol base samples.
     pub sigma_enu_mc_m: [f64; 3],
     /// Per factor (18 inputs then 6 groups).
     pub factors: Vec<FactorRow>,
 }
 
-/// Mean over the points of one factor's indices on the total output.
+/// Mean over the points of one factor's indices on one output.
 #[derive(Debug, Clone, Serialize)]
 pub struct FactorSummary {
     /// Input or group name.
     pub factor: String,
+    /// Output ([`OUTPUTS`]).
+    pub output: &'static str,
     /// Mean first-order index.
     pub mean_first: f64,
     /// Mean total-effect index.
@@ -426,33 +432,38 @@ fn point_result(
     sets: &[Vec<usize>],
     sobol: &SobolIndices,
 ) -> PointResult {
-    let contrib: Vec<f64> = (0..N_INPUTS)
-        .map(|i| (j.column(i) * sigmas[i]).norm_squared())
-        .collect();
-    let total: f64 = contrib.iter().sum();
-    let sigma_enu_m = std::array::from_fn(|k| {
-        (0..N_INPUTS)
-            .map(|i| (j[(k, i)] * sigmas[i]).powi(2))
-            .sum::<f64>()
-            .sqrt()
-    });
+    // contrib[k][i]: variance of output k (E, N, U, then their sum) from input i.
+    let mut contrib = [[0.0; N_INPUTS]; N_OUT + 1];
+    for i in 0..N_INPUTS {
+        for k in 0..N_OUT {
+            contrib[k][i] = (j[(k, i)] * sigmas[i]).powi(2);
+            contrib[N_OUT][i] += contrib[k][i];
+        }
+    }
+    let var: [f64; N_OUT + 1] = contrib.map(|c| c.iter().sum::<f64>());
     let factors = names
         .iter()
         .zip(sets)
-        .zip(&sobol.combined)
         .enumerate()
-        .map(|(f, ((name, set), s))| FactorRow {
+        .map(|(f, (name, set))| FactorRow {
             factor: name.clone(),
             kind: if f < N_INPUTS { "input" } else { "group" },
-            sobol: *s,
-            linear_share: set.iter().map(|&i| contrib[i]).sum::<f64>()
-                / total.max(f64::MIN_POSITIVE),
+            sobol: std::array::from_fn(|k| {
+                if k < N_OUT {
+                    sobol.per_output[k][f]
+                } else {
+                    sobol.combined[f]
+                }
+            }),
+            linear_share: std::array::from_fn(|k| {
+                set.iter().map(|&i| contrib[k][i]).sum::<f64>() / var[k].max(f64::MIN_POSITIVE)
+            }),
         })
         .collect();
     PointResult {
         range_m: geom.range_m,
         beta_deg: geom.beta_rad.to_degrees(),
-        sigma_enu_m,
+        sigma_enu_m: std::array::from_fn(|k| var[k].sqrt()),
         sigma_enu_mc_m: sobol.variance.map(f64::sqrt),
         factors,
     }
@@ -460,70 +471,75 @@ fn point_result(
 
 fn summarise(names: &[String], points: &[PointResult]) -> Vec<FactorSummary> {
     let n = points.len().max(1) as f64;
-    names
-        .iter()
-        .enumerate()
-        .map(|(f, name)| {
+    let mut out = Vec::new();
+    for (f, name) in names.iter().enumerate() {
+        for (k, output) in OUTPUTS.iter().enumerate() {
             let rows = points.iter().map(|p| (&p.factors[f], p.range_m));
-            let max_first = rows.clone().map(|(r, rho)| (r.sobol.first, rho)).fold(
+            let max_first = rows.clone().map(|(r, rho)| (r.sobol[k].first, rho)).fold(
                 (f64::NEG_INFINITY, 0.0),
                 |a, b| if b.0 > a.0 { b } else { a },
             );
-            FactorSummary {
+            out.push(FactorSummary {
                 factor: name.clone(),
-                mean_first: rows.clone().map(|(r, _)| r.sobol.first).sum::<f64>() / n,
-                mean_total: rows.clone().map(|(r, _)| r.sobol.total).sum::<f64>() / n,
-                mean_linear_share: rows.map(|(r, _)| r.linear_share).sum::<f64>() / n,
+                output,
+                mean_first: rows.clone().map(|(r, _)| r.sobol[k].first).sum::<f64>() / n,
+                mean_total: rows.clone().map(|(r, _)| r.sobol[k].total).sum::<f64>() / n,
+                mean_linear_share: rows.map(|(r, _)| r.linear_share[k]).sum::<f64>() / n,
                 max_first,
-            }
-        })
-        .collect()
+            });
+        }
+    }
+    out
 }
 
 fn points_table(r: &SensitivityReport) -> String {
     let mut s = String::from(
-        "range_m,beta_deg,factor,kind,first,first_conf,total,total_conf,linear_share\n",
+        "range_m,beta_deg,factor,kind,output,first,first_conf,total,total_conf,linear_share\n",
     );
     for p in &r.points {
         for f in &p.factors {
-            let i = &f.sobol;
-            let _ = writeln!(
-                s,
-                "{:.3},{:.4},{},{},{:.6},{:.6},{:.6},{:.6},{:.6}",
-                p.range_m,
-                p.beta_deg,
-                f.factor,
-                f.kind,
-                i.first,
-                i.first_conf,
-                i.total,
-                i.total_conf,
-                f.linear_share
-            );
+            for (k, output) in OUTPUTS.iter().enumerate() {
+                let i = &f.sobol[k];
+                let _ = writeln!(
+                    s,
+                    "{:.3},{:.4},{},{},{output},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                    p.range_m,
+                    p.beta_deg,
+                    f.factor,
+                    f.kind,
+                    i.first,
+                    i.first_conf,
+                    i.total,
+                    i.total_conf,
+                    f.linear_share[k]
+                );
+            }
         }
     }
     s
 }
 
-/// Plot data: one row per range, first-order Sobol index of each group and of each input.
+/// Plot data: one row per range; for each factor and output, the first-order and total Sobol
+/// indices and the linear share (`<factor>_<output>_first`, `_total`, `_linear`).
 fn share_vs_range_table(r: &SensitivityReport) -> String {
     let Some(first) = r.points.first() else {
         return String::new();
     };
     let mut s = String::from("range_m,sigma_e_m,sigma_n_m,sigma_u_m");
     for f in &first.factors {
-        let _ = write!(s, ",{0}_first,{0}_total,{0}_linear", f.factor);
+        for o in OUTPUTS {
+            let _ = write!(s, ",{0}_{o}_first,{0}_{o}_total,{0}_{o}_linear", f.factor);
+        }
     }
     s.push('\n');
     for p in &r.points {
-        let [e, n, u] = p.sigma_enu_m;
+        let [e, n, u, _] = p.sigma_enu_m;
         let _ = write!(s, "{:.3},{e:.6},{n:.6},{u:.6}", p.range_m);
         for f in &p.factors {
-            let _ = write!(
-                s,
-                ",{:.6},{:.6},{:.6}",
-                f.sobol.first, f.sobol.total, f.linear_share
-            );
+            for k in 0..OUTPUTS.len() {
+                let i = &f.sobol[k];
+                let _ = write!(s, ",{:.6},{:.6},{:.6}", i.first, i.total, f.linear_share[k]);
+            }
         }
         s.push('\n');
     }
