@@ -6,6 +6,7 @@ use crate::io::atomic::write_atomic;
 use crate::pipeline::config;
 use crate::pipeline::executor::{map_frame, run, RunOptions};
 use crate::pipeline::report::RunReport;
+use crate::pipeline::sink::ExtraSlots;
 use crate::sim::{self, files, SimOptions};
 use crate::trajectory::{Trajectory, TrajectoryOptions};
 use crate::{Error, Result};
@@ -34,6 +35,38 @@ pub struct DemoSummary {
     pub error_3d_m: [f64; 3],
     /// Horizontal and vertical RMS error (m).
     pub error_h_v_rms_m: [f64; 2],
+    /// RMS of error / predicted sigma along X, Y, Z (1 for an honest uncertainty, up to the
+    /// scatter of one drive's correlated navigation errors); None without `sigma_*` fields.
+    pub normalised_rms_xyz: Option<[f64; 3]>,
+}
+
+/// RMS of error / sigma along X, Y, Z, when the LAS has sigma fields.
+type NormalisedRms = Option<[f64; 3]>;
+
+/// Byte offsets of the extra dimensions the demo reads, from the pipeline's layout.
+struct ExtraOffsets {
+    return_index: usize,
+    sigma_x: Option<usize>,
+}
+
+impl ExtraOffsets {
+    fn of(c: &crate::pipeline::config::PipelineConfig) -> Self {
+        let (slots, dims) = ExtraSlots::for_config(c);
+        let offset = |slot: usize| {
+            dims[..slot]
+                .iter()
+                .map(|d| d.data_type.size())
+                .sum::<usize>()
+        };
+        ExtraOffsets {
+            return_index: offset(
+                slots
+                    .return_index
+                    .expect("the demo pipeline writes return_index"),
+            ),
+            sigma_x: slots.uncertainty.map(offset),
+        }
+    }
 }
 
 /// Simulates the city block into `out/survey`, runs `out/pipeline.toml` on it and compares.
@@ -67,7 +100,7 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
         .first()
         .ok_or_else(|| Error::Invalid("demo wrote no LAS".into()))?
         .path;
-    let errors = compare(las, &truth, &frame)?;
+    let (errors, normalised) = compare(las, &truth, &frame, &ExtraOffsets::of(&loaded.config))?;
     Ok(DemoSummary {
         simulate_s,
         report,
@@ -75,26 +108,43 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
         compared: errors.len() as u64,
         error_3d_m: stats_3d(&errors),
         error_h_v_rms_m: rms_h_v(&errors),
+        normalised_rms_xyz: normalised,
     })
 }
 
-/// Map-frame error vectors of every LAS point against the truth of its raw return, found
-/// through the `return_index` extra dimension.
-fn compare(las: &Path, truth: &[[f64; 3]], frame: &MapFrame) -> Result<Vec<Vector3<f64>>> {
+/// Map-frame error vectors of every LAS point against the truth of its raw return (found
+/// through the `return_index` extra dimension), and the RMS of error / sigma per axis.
+fn compare(
+    las: &Path,
+    truth: &[[f64; 3]],
+    frame: &MapFrame,
+    at: &ExtraOffsets,
+) -> Result<(Vec<Vector3<f64>>, NormalisedRms)> {
     let bad = |e: las::Error| Error::bad_file(las, e.to_string());
     let mut reader = las::Reader::from_path(las).map_err(bad)?;
     let mut errors = Vec::new();
+    let mut normalised = Vector3::zeros();
     for p in reader.read_all().map_err(bad)?.points() {
         let p = p.map_err(bad)?;
-        // `range` (f32) precedes `return_index` (f64) in the demo's extra bytes.
-        let index = f64::from_le_bytes(p.extra_bytes[4..12].try_into().expect("8 bytes")) as usize;
+        let f64_at =
+            |o: usize| f64::from_le_bytes(p.extra_bytes[o..o + 8].try_into().expect("8 bytes"));
+        let f32_at = |o: usize| {
+            f32::from_le_bytes(p.extra_bytes[o..o + 4].try_into().expect("4 bytes")) as f64
+        };
+        let index = f64_at(at.return_index) as usize;
         let t = truth.get(index).ok_or_else(|| {
             Error::bad_file(las, format!("return_index {index} beyond the truth"))
         })?;
-        let t_m = frame.ecef_to_map(&Vector3::from(*t));
-        errors.push(Vector3::new(p.x, p.y, p.z) - t_m);
+        let e = Vector3::new(p.x, p.y, p.z) - frame.ecef_to_map(&Vector3::from(*t));
+        if let Some(o) = at.sigma_x {
+            let sigma = Vector3::new(f32_at(o), f32_at(o + 4), f32_at(o + 8));
+            normalised += e.component_div(&sigma).map(|v| v * v);
+        }
+        errors.push(e);
     }
-    Ok(errors)
+    let n = errors.len().max(1) as f64;
+    let normalised = at.sigma_x.map(|_| (normalised / n).map(f64::sqrt).into());
+    Ok((errors, normalised))
 }
 
 fn stats_3d(errors: &[Vector3<f64>]) -> [f64; 3] {
@@ -131,6 +181,9 @@ impl fmt::Display for DemoSummary {
         }
         let [rms, p95, max] = self.error_3d_m;
         let [h, v] = self.error_h_v_rms_m;
+        if let Some([x, y, z]) = self.normalised_rms_xyz {
+            writeln!(f, "  error / sigma    RMS {x:.2} (X), {y:.2} (Y), {z:.2} (Z): the per-point sigma_x/y/z against the true errors")?;
+        }
         writeln!(f, "  error vs truth   3D RMS {:.1} mm, 95th percentile {:.1} mm, max {:.1} mm (horizontal RMS {:.1} mm, vertical RMS {:.1} mm) over {} points", rms * 1e3, p95 * 1e3, max * 1e3, h * 1e3, v * 1e3, self.compared)?;
         for o in &self.report.outputs {
             writeln!(

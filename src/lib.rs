@@ -18,5 +18,6 @@ pub mod progress;
 pub mod sim;
 pub mod timing;
 pub mod trajectory;
+pub mod uncertainty;
 
 pub use error::{Error, Result};

@@ -55,10 +55,24 @@ impl AtomicFile {
             .writer
             .into_inner()
             .map_err(|e| Error::io(&path, e.into_error()))?;
+        publish_permissions(tmp.as_file()).map_err(|e| Error::io(&path, e))?;
         tmp.as_file().sync_all().map_err(|e| Error::io(&path, e))?;
         tmp.persist(&path).map_err(|e| Error::io(&path, e.error))?;
         Ok(())
     }
+}
+
+/// Gives a finished output the permissions of an ordinarily created file (rw-r--r-- on Unix):
+/// temporary files are private (0600), which would surprise anyone sharing a survey folder.
+pub fn publish_permissions(file: &std::fs::File) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        file.set_permissions(std::fs::Permissions::from_mode(0o644))?;
+    }
+    #[cfg(not(unix))]
+    let _ = file;
+    Ok(())
 }
 
 /// Writes `bytes` to `path` atomically.

@@ -610,6 +610,7 @@ impl LasWriter {
         let f: &mut File = tmp.as_file_mut();
         f.seek(SeekFrom::Start(0)).map_err(io)?;
         f.write_all(&header).map_err(io)?;
+        crate::io::atomic::publish_permissions(f).map_err(io)?;
         f.sync_all().map_err(io)?;
         tmp.persist(&path).map_err(|e| io(e.error))?;
         sync_parent_dir(&path);

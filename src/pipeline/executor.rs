@@ -13,7 +13,9 @@ use crate::georef::{georeference, point_s, Sensor};
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::{Mirror, ScannerClock};
-use crate::trajectory::{NavGap, PoseCursor, Trajectory, TrajectoryOptions};
+use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
+use crate::uncertainty::model::MapAxesCache;
+use crate::uncertainty::{propagate, PointCovariance, PointGeometry, UncertaintyInputs};
 use crate::{Error, Result};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -56,6 +58,35 @@ struct Georeferencer<'a> {
     frame: MapFrame,
     point_source_id: u16,
     slots: ExtraSlots,
+    uncertainty: Option<UncertaintyOut>,
+}
+
+/// Per-point uncertainty (present with an `[uncertainty]` table).
+struct UncertaintyOut {
+    inputs: UncertaintyInputs,
+    write_95: bool,
+    write_shares: bool,
+    /// Index in `LasPoint::extra` of `sigma_x`.
+    first_dim: usize,
+}
+
+impl UncertaintyOut {
+    /// Writes the uncertainty extra dimensions of `cov` into `extra` (order of
+    /// [`super::sink::uncertainty_dims`]).
+    fn fill(&self, cov: &PointCovariance, extra: &mut [f64]) {
+        let mut values = [0.0; 11];
+        values[..3].copy_from_slice(cov.sigma_xyz_m().as_slice());
+        let mut n = 3;
+        if self.write_95 {
+            values[n..n + 2].copy_from_slice(&[cov.thu95_m(), cov.tvu95_m()]);
+            n += 2;
+        }
+        if self.write_shares {
+            values[n..n + 6].copy_from_slice(&cov.shares());
+            n += 6;
+        }
+        extra[self.first_dim..self.first_dim + n].copy_from_slice(&values[..n]);
+    }
 }
 
 /// The result of one chunk of returns: its LAS records, already encoded.
@@ -98,12 +129,25 @@ impl Georeferencer<'_> {
         }
     }
 
+    /// Partials of a return's time with respect to the clock parameters (t0, T).
+    fn clock_partials(&self, r: &RawReturn) -> [f64; 2] {
+        match self.model {
+            TimeModel::Software => {
+                let (a, b) = self.clock.partials(r.profile, r.beta_rad);
+                [a, b]
+            }
+            TimeModel::HardwareProfile => [0.0, self.clock.mirror.fraction(r.beta_rad)],
+            TimeModel::HardwareReturn => [0.0, 0.0],
+        }
+    }
+
     #[inline]
     fn point(
         &self,
         r: &RawReturn,
         cursor: &mut PoseCursor,
         local: &mut Option<LocalProjection>,
+        sigmas: Option<&mut (SigmaCursor, MapAxesCache)>,
     ) -> Result<(LasPoint, f64), RejectReason> {
         let alpha = if self.columns.alpha {
             r.alpha_rad
@@ -122,6 +166,10 @@ impl Georeferencer<'_> {
         }
         let t = self.time_of(r);
         let pose = cursor.at(t)?;
+        let nav_sigma = match sigmas {
+            Some((cursor, axes)) => Some((cursor.at(t)?, axes)),
+            None => None,
+        };
         let x_e = georeference(
             &pose,
             &self.sensor,
@@ -142,6 +190,12 @@ impl Georeferencer<'_> {
         };
         if let Some(k) = self.slots.range {
             p.extra[k] = r.range_m;
+        }
+        if let (Some(u), Some((nav_sigma, axes))) = (&self.uncertainty, nav_sigma) {
+            let geom = PointGeometry::from_pose(&pose, &self.sensor, alpha, r.beta_rad, r.range_m);
+            let to_map = axes.at(&x_e);
+            let cov = propagate(&geom, &u.inputs, &nav_sigma, self.clock_partials(r), to_map);
+            u.fill(&cov, &mut p.extra);
         }
         Ok((p, t))
     }
@@ -183,6 +237,11 @@ impl Georeferencer<'_> {
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
         let mut local = None;
         let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
+        let mut sigmas = self
+            .uncertainty
+            .as_ref()
+            .and_then(|_| self.traj.sigma_cursor())
+            .map(|c| (c, MapAxesCache::new(self.frame)));
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {
@@ -198,7 +257,7 @@ impl Georeferencer<'_> {
             }
             prev = Some(r.profile);
             out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
-            match self.point(&r, &mut cursor, &mut local) {
+            match self.point(&r, &mut cursor, &mut local, sigmas.as_mut()) {
                 Ok((mut p, t)) => {
                     if let Some(k) = self.slots.return_index {
                         p.extra[k] = i as f64;
@@ -433,6 +492,12 @@ fn georeferencer<'a>(
         frame: *frame,
         point_source_id,
         slots: ExtraSlots::for_config(c).0,
+        uncertainty: c.uncertainty.as_ref().map(|u| UncertaintyOut {
+            inputs: u.inputs(),
+            write_95: u.write_95,
+            write_shares: u.write_shares,
+            first_dim: ExtraSlots::for_config(c).0.uncertainty.unwrap_or(0),
+        }),
     })
 }
 

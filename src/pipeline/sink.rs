@@ -1,7 +1,7 @@
 //! Where georeferenced points go: one or more LAS files, split per input or by point count,
 //! named predictably, each written atomically.
 
-use super::config::{PipelineConfig, SplitMode};
+use super::config::{PipelineConfig, SplitMode, UncertaintyConfig};
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
@@ -68,46 +68,64 @@ impl SinkSettings {
     }
 }
 
-/// Which extra dimensions a run writes, and their slots in `LasPoint::extra`.
+/// Which extra dimensions a run writes, and their slots in `LasPoint::extra`, in record
+/// order: `range`, `return_index`, then with `[uncertainty]` the fields of [`uncertainty_dims`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct ExtraSlots {
     /// Slot of `range` (m).
     pub range: Option<usize>,
     /// Slot of `return_index`.
     pub return_index: Option<usize>,
+    /// Slot of the first uncertainty dimension (`sigma_x`).
+    pub uncertainty: Option<usize>,
 }
 
 impl ExtraSlots {
     /// Slots and descriptors, in record order, for a pipeline.
     pub fn for_config(c: &PipelineConfig) -> (Self, Vec<ExtraDim>) {
         let mut dims = Vec::new();
-        let mut slot = |dim: ExtraDim| {
-            dims.push(dim);
-            Some(dims.len() - 1)
-        };
-        let range = c
-            .output
-            .range_dimension
-            .then(|| slot(ExtraDim::f32("range", "measured range rho (m)")))
-            .flatten();
-        let return_index = c
-            .output
-            .return_index_dimension
-            .then(|| {
-                slot(ExtraDim::f64(
-                    "return_index",
-                    "record index in profile file",
-                ))
-            })
-            .flatten();
-        (
-            ExtraSlots {
-                range,
-                return_index,
-            },
-            dims,
-        )
+        let mut slots = ExtraSlots::default();
+        if c.output.range_dimension {
+            slots.range = Some(dims.len());
+            dims.push(ExtraDim::f32("range", "measured range rho (m)"));
+        }
+        if c.output.return_index_dimension {
+            slots.return_index = Some(dims.len());
+            dims.push(ExtraDim::f64(
+                "return_index",
+                "record index in profile file",
+            ));
+        }
+        if let Some(u) = &c.uncertainty {
+            slots.uncertainty = Some(dims.len());
+            dims.extend(uncertainty_dims(u));
+        }
+        (slots, dims)
     }
+}
+
+/// Uncertainty extra dimensions (docs/uncertainty.md): `sigma_x`, `sigma_y`, `sigma_z` (1 sigma
+/// along the file's X, Y, Z, m); with `write_95`, `thu95` and `tvu95` (95% horizontal and
+/// vertical, m); with `write_shares`, `share_<group>` for the six groups (fraction of the 3D
+/// variance, 0-1), in [`crate::uncertainty::Group`] order.
+pub fn uncertainty_dims(u: &UncertaintyConfig) -> Vec<ExtraDim> {
+    let mut dims = vec![
+        ExtraDim::f32("sigma_x", "1-sigma along X (m)"),
+        ExtraDim::f32("sigma_y", "1-sigma along Y (m)"),
+        ExtraDim::f32("sigma_z", "1-sigma along Z (m)"),
+    ];
+    if u.write_95 {
+        dims.push(ExtraDim::f32("thu95", "95% horizontal, 1.7308 sig_r (m)"));
+        dims.push(ExtraDim::f32("tvu95", "95% vertical, 1.96 sigma_z (m)"));
+    }
+    if u.write_shares {
+        for g in crate::uncertainty::Group::ALL {
+            let name = format!("share_{}", g.name());
+            let desc = format!("{} variance share", g.name());
+            dims.push(ExtraDim::f32(&name, &desc));
+        }
+    }
+    dims
 }
 
 /// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",

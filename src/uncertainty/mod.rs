@@ -1,0 +1,20 @@
+//! Per-point propagated uncertainty and variance-based sensitivity (SPEC 5, issue 3).
+//!
+//! - [`model`]: the georeferencing equation as a function of the 18 error inputs, exact and
+//!   linearised (analytic Jacobian).
+//! - [`propagate`]: `Sigma = J Q J^T` per return along the map axes, 95% figures and per-group
+//!   variance shares.
+//! - [`sobol`]: Saltelli sampling, Saltelli-2010 first-order and Jansen total-effect
+//!   estimators with bootstrap intervals, on the exact model.
+//! - [`sensitivity`]: the `kinescan sensitivity` study (TOML in, CSV/JSON tables out).
+//!
+//! docs/uncertainty.md documents the model, the inputs and the output fields.
+
+pub mod model;
+pub mod propagate;
+pub mod sensitivity;
+pub mod sobol;
+
+pub use model::{Group, Input, PointGeometry, N_GROUPS, N_INPUTS};
+pub use propagate::{propagate, PointCovariance, UncertaintyInputs};
+pub use sensitivity::{run_sensitivity, SensitivityReport};

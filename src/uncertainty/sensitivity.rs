@@ -1,0 +1,547 @@
+//! The sensitivity study behind `kinescan sensitivity`: Sobol indices (per input and per group)
+//! and the analytic linear shares of every point of a parking-lot-like geometry, written as
+//! CSV and JSON tables.
+//!
+//! Geometry: a platform at a stated position and attitude, moving at `speed_mps` along its
+//! heading and turning with `body_rate_deg_s`; a profile scanner whose returns come from flat
+//! ground `scanner_height_m` below the optical centre at ranges `range_m[0]..range_m[1]`:
+//! `beta = acos(height / rho)` (exact for a level platform and identity boresight; otherwise it
+//! is just the set of (rho, beta) studied). Outputs are the point's displacement along local
+//! East, North, Up at the point, and their variance-weighted combination ("total").
+
+use super::model::{Group, Input, PointGeometry, N_INPUTS};
+use super::propagate::UncertaintyInputs;
+use super::sobol::{FactorIndices, SaltelliDesign, SobolIndices, N_OUT};
+use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic};
+use crate::geo::rotations::r_zyx;
+use crate::io::atomic::write_atomic;
+use crate::pipeline::config::UncertaintyConfig;
+use crate::trajectory::NavSigma;
+use crate::{Error, Result};
+use nalgebra::{Matrix2, Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Outputs analysed: displacement along local East, North, Up at the point, and "total" (the
+/// 3D variance: indices weighted by each component's variance).
+pub const OUTPUTS: [&str; N_OUT + 1] = ["east", "north", "up", "total"];
+
+/// Which sigma set: paper 003 Table 1 "expected" or "ideal", or `[custom]`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SigmaSet {
+    /// Table 1 expected: lever 0.02 m, boresight 0.02 deg, alpha/beta 0.0055 deg, range
+    /// 0.008 m, K 0.01 m.
+    Expected,
+    /// Table 1 ideal: lever 0.004 m, boresight 0.001 deg, alpha/beta 0.0055 deg, range 0.003 m,
+    /// K 0.005 m.
+    Ideal,
+    /// The `[custom]` table.
+    Custom,
+}
+
+/// A sensitivity study file (TOML, unknown keys refused).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensitivityConfig {
+    /// Sigma set.
+    pub sigma_set: SigmaSet,
+    /// Sigmas for `sigma_set = "custom"` (same keys as the pipeline's `[uncertainty]`).
+    #[serde(default)]
+    pub custom: Option<UncertaintyConfig>,
+    /// Saltelli base rows per point (model runs: `samples * (18 + 6 + 2)`).
+    #[serde(default = "default_samples")]
+    pub samples: usize,
+    /// Bootstrap resamples for the 95% intervals.
+    #[serde(default = "default_bootstrap")]
+    pub bootstrap: usize,
+    /// Random seed.
+    #[serde(default)]
+    pub seed: u64,
+    /// INS sigmas ("estimated from INS" in Table 1).
+    pub ins: InsSigmaConfig,
+    /// Timing sigmas (not in Table 1; used by every set).
+    #[serde(default)]
+    pub timing: TimingSigmaConfig,
+    /// Platform state.
+    pub platform: PlatformConfig,
+    /// Scanner mounting.
+    pub sensor: StudySensorConfig,
+    /// Points studied.
+    pub points: PointsConfig,
+}
+
+/// `[ins]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InsSigmaConfig {
+    /// North, east, down position (m).
+    pub sigma_position_ned_m: [f64; 3],
+    /// Roll, pitch, heading (deg).
+    pub sigma_attitude_rph_deg: [f64; 3],
+}
+
+/// `[timing]`.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimingSigmaConfig {
+    /// Clock time error of a return (s): `sqrt(g^T C g)` of the (t0, T) covariance.
+    #[serde(default)]
+    pub sigma_clock_time_s: f64,
+    /// Attitude latency (s).
+    #[serde(default)]
+    pub sigma_attitude_latency_s: f64,
+}
+
+/// `[platform]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PlatformConfig {
+    /// IMU latitude (deg).
+    pub lat_deg: f64,
+    /// IMU longitude (deg).
+    pub lon_deg: f64,
+    /// IMU ellipsoidal height (m).
+    pub h_m: f64,
+    /// Roll, pitch, heading (deg).
+    #[serde(default)]
+    pub rph_deg: [f64; 3],
+    /// Speed along the heading (m/s).
+    #[serde(default)]
+    pub speed_mps: f64,
+    /// Body angular rate (deg/s, body axes).
+    #[serde(default)]
+    pub body_rate_deg_s: [f64; 3],
+}
+
+/// `[sensor]` of a study.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySensorConfig {
+    /// Lever arm (m, body frame).
+    pub lever_arm_b_m: [f64; 3],
+    /// Boresight angles (deg).
+    #[serde(default)]
+    pub boresight_deg: [f64; 3],
+    /// Out-of-plane angle alpha0 (deg).
+    #[serde(default)]
+    pub alpha0_deg: f64,
+}
+
+/// `[points]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointsConfig {
+    /// Height of the scanner's optical centre above the ground (m).
+    pub scanner_height_m: f64,
+    /// First and last range (m), both >= the scanner height.
+    pub range_m: [f64; 2],
+    /// Number of ranges, evenly spaced.
+    pub count: usize,
+}
+
+fn default_samples() -> usize {
+    4096
+}
+fn default_bootstrap() -> usize {
+    100
+}
+
+/// One factor's result at one point.
+#[derive(Debug, Clone, Serialize)]
+pub struct FactorRow {
+    /// Input or group name.
+    pub factor: String,
+    /// "input" or "group".
+    pub kind: &'static str,
+    /// Sobol indices per output ([`OUTPUTS`]: E, N, U, total = variance-weighted E, N, U).
+    pub sobol: [FactorIndices; N_OUT + 1],
+    /// Analytic linear share of each output's variance.
+    pub linear_share: [f64; N_OUT + 1],
+}
+
+/// Results at one point.
+#[derive(Debug, Clone, Serialize)]
+pub struct PointResult {
+    /// Range (m).
+    pub range_m: f64,
+    /// Mirror angle (deg).
+    pub beta_deg: f64,
+    /// Linear 1-sigma along E, N, U and in 3D (m).
+    pub sigma_enu_m: [f64; 4],
+    /// Monte Carlo 1-sigma along E, N, U (m) from the Sobol base samples.
+    pub sigma_enu_mc_m: [f64; 3],
+    /// Per factor (18 inputs then 6 groups).
+    pub factors: Vec<FactorRow>,
+}
+
+/// Mean over the points of one factor's indices on one output.
+#[derive(Debug, Clone, Serialize)]
+pub struct FactorSummary {
+    /// Input or group name.
+    pub factor: String,
+    /// Output ([`OUTPUTS`]).
+    pub output: &'static str,
+    /// Mean first-order index.
+    pub mean_first: f64,
+    /// Mean total-effect index.
+    pub mean_total: f64,
+    /// Mean linear share.
+    pub mean_linear_share: f64,
+    /// Largest first-order index over the points, and its range (m).
+    pub max_first: (f64, f64),
+}
+
+/// What `run_sensitivity` computed and wrote.
+#[derive(Debug, Clone, Serialize)]
+pub struct SensitivityReport {
+    /// The study file as read.
+    pub config: SensitivityConfig,
+    /// The 1-sigma of every input used (model order; SI units, see docs/uncertainty.md).
+    pub sigmas: Vec<(String, f64)>,
+    /// Per point.
+    pub points: Vec<PointResult>,
+    /// Per factor, over the points.
+    pub summary: Vec<FactorSummary>,
+    /// Files written.
+    pub outputs: Vec<PathBuf>,
+}
+
+impl SigmaSet {
+    /// Table 1 of paper 003 (no timing terms; they come from `[timing]`).
+    fn inputs(self, custom: Option<&UncertaintyConfig>) -> Option<UncertaintyInputs> {
+        let table = |lever: f64, bore_deg: f64, range: f64, k: f64| UncertaintyInputs {
+            sigma_lever_arm_b_m: Vector3::repeat(lever),
+            sigma_boresight_rad: Vector3::repeat(bore_deg.to_radians()),
+            sigma_alpha_rad: 0.0055f64.to_radians(),
+            sigma_beta_rad: 0.0055f64.to_radians(),
+            sigma_range_m: range,
+            sigma_range_zero_m: k,
+            clock_covariance_s2: Matrix2::zeros(),
+            sigma_attitude_latency_s: 0.0,
+        };
+        match self {
+            SigmaSet::Expected => Some(table(0.02, 0.02, 0.008, 0.01)),
+            SigmaSet::Ideal => Some(table(0.004, 0.001, 0.003, 0.005)),
+            SigmaSet::Custom => custom.map(UncertaintyConfig::inputs),
+        }
+    }
+}
+
+/// Reads a study file (TOML).
+pub fn load_sensitivity(path: &Path) -> Result<SensitivityConfig> {
+    let name = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let de = toml::Deserializer::parse(&text)
+        .map_err(|e| Error::config(&name, "(syntax)", e.to_string()))?;
+    let c: SensitivityConfig = serde_path_to_error::deserialize(de)
+        .map_err(|e| Error::config(&name, e.path().to_string(), e.inner().message()))?;
+    validate(&c).map_err(|(key, problem)| Error::config(&name, key, problem))?;
+    Ok(c)
+}
+
+fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, String)> {
+    if c.sigma_set == SigmaSet::Custom {
+        c.custom
+            .as_ref()
+            .ok_or((
+                "custom",
+                "sigma_set = \"custom\" needs a [custom] table".into(),
+            ))?
+            .check()?;
+    }
+    if !(64..=1 << 22).contains(&c.samples) || c.bootstrap == 1 {
+        return Err((
+            "samples",
+            "samples must be in 64..=4194304 and bootstrap 0 or >= 2".into(),
+        ));
+    }
+    let ins = c
+        .ins
+        .sigma_position_ned_m
+        .iter()
+        .chain(&c.ins.sigma_attitude_rph_deg);
+    let t = &c.timing;
+    let timing = [t.sigma_clock_time_s, t.sigma_attitude_latency_s];
+    if !ins.chain(&timing).all(|s| s.is_finite() && *s >= 0.0) {
+        return Err((
+            "ins",
+            "INS and timing sigmas must be finite and >= 0".into(),
+        ));
+    }
+    let p = &c.points;
+    let ok = p.scanner_height_m > 0.0
+        && p.range_m[0] >= p.scanner_height_m
+        && p.range_m[1] >= p.range_m[0]
+        && p.range_m[1].is_finite()
+        && p.count >= 1;
+    if !ok {
+        return Err((
+            "points",
+            "need 0 < scanner_height_m <= range_m[0] <= range_m[1] and count >= 1".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// Runs the study in `config_path` and writes into `out_dir`: `sensitivity_points.csv` (every
+/// point, factor and output), `share_vs_range.csv` (plot data: first-order, total and linear
+/// share of each factor against range), `sensitivity.json` (the [`SensitivityReport`]).
+pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<SensitivityReport> {
+    let config = load_sensitivity(config_path)?;
+    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
+    let mut report = study(config)?;
+    let points_csv = out_dir.join("sensitivity_points.csv");
+    write_atomic(&points_csv, points_table(&report).as_bytes())?;
+    let plot_csv = out_dir.join("share_vs_range.csv");
+    write_atomic(&plot_csv, share_vs_range_table(&report).as_bytes())?;
+    report.outputs = vec![points_csv, plot_csv.clone()];
+    report
+        .outputs
+        .extend(plot_share_against_range(&plot_csv, out_dir)?);
+    let json = out_dir.join("sensitivity.json");
+    report.outputs.push(json.clone());
+    let text = serde_json::to_string_pretty(&report)
+        .map_err(|e| Error::Invalid(format!("cannot serialise the report: {e}")))?;
+    write_atomic(&json, text.as_bytes())?;
+    Ok(report)
+}
+
+/// The PNG plots (share against range, one per group, like paper 003's scatter plots) from
+/// the plot data in `share_vs_range.csv`. The plotting module `kinescan::plot` is not merged
+/// yet: this is where its call goes; until then no PNG is written and the list is empty.
+fn plot_share_against_range(_plot_csv: &Path, _out_dir: &Path) -> Result<Vec<PathBuf>> {
+    Ok(Vec::new())
+}
+
+/// The factors studied: each input alone, then each group.
+pub fn study_factors() -> (Vec<String>, Vec<Vec<usize>>) {
+    let mut names: Vec<String> = Input::ALL.iter().map(|i| i.name().to_string()).collect();
+    let mut sets: Vec<Vec<usize>> = (0..N_INPUTS).map(|i| vec![i]).collect();
+    for g in Group::ALL {
+        names.push(g.name().to_string());
+        sets.push(g.inputs().collect());
+    }
+    (names, sets)
+}
+
+/// The geometry of the study point at range `rho` (m).
+pub fn study_point(c: &SensitivityConfig, rho: f64) -> PointGeometry {
+    let p = &c.platform;
+    let g = Geodetic {
+        lat_rad: p.lat_deg.to_radians(),
+        lon_rad: p.lon_deg.to_radians(),
+        h_m: p.h_m,
+    };
+    let [r, pitch, h] = p.rph_deg.map(f64::to_radians);
+    let [bx, by, bz] = c.sensor.boresight_deg.map(f64::to_radians);
+    let (sh, ch) = h.sin_cos();
+    PointGeometry {
+        r_e_m: geodetic_to_ecef(g),
+        lat_rad: g.lat_rad,
+        lon_rad: g.lon_rad,
+        h_m: g.h_m,
+        r_b_to_n: r_zyx(r, pitch, h),
+        v_n_mps: Vector3::new(ch, sh, 0.0) * p.speed_mps,
+        omega_b_radps: Vector3::from(p.body_rate_deg_s.map(f64::to_radians)),
+        lever_arm_b_m: c.sensor.lever_arm_b_m.into(),
+        r_s_to_b: r_zyx(bx, by, bz),
+        alpha_rad: c.sensor.alpha0_deg.to_radians(),
+        beta_rad: (c.points.scanner_height_m / rho).min(1.0).acos(),
+        range_m: rho,
+        range_zero_m: 0.0,
+    }
+}
+
+/// The 1-sigma of every input for the study (model order).
+pub fn study_sigmas(c: &SensitivityConfig) -> Result<[f64; N_INPUTS]> {
+    let inputs = c
+        .sigma_set
+        .inputs(c.custom.as_ref())
+        .ok_or_else(|| Error::Invalid("sigma_set = \"custom\" needs [custom]".into()))?;
+    let nav = NavSigma {
+        pos_ned_m: c.ins.sigma_position_ned_m.into(),
+        att_rph_rad: c.ins.sigma_attitude_rph_deg.map(f64::to_radians).into(),
+    };
+    let mut s = inputs.sigmas(&nav, [0.0, 0.0]);
+    if c.sigma_set != SigmaSet::Custom {
+        s[Input::Latency as usize] = c.timing.sigma_attitude_latency_s;
+    }
+    s[Input::ClockTime as usize] = s[Input::ClockTime as usize].hypot(c.timing.sigma_clock_time_s);
+    Ok(s)
+}
+
+/// `R_e^enu` at the nominal point of `geom`.
+pub fn r_e_to_enu_at_point(geom: &PointGeometry) -> Matrix3<f64> {
+    let g = ecef_to_geodetic(&geom.point_e(&[0.0; N_INPUTS]));
+    r_enu_to_e(g.lat_rad, g.lon_rad).transpose()
+}
+
+/// The exact model as a Sobol model: input errors to the E, N, U displacement (m).
+pub fn enu_error_model(geom: &PointGeometry) -> impl Fn(&[f64]) -> [f64; N_OUT] + Sync + '_ {
+    let nominal = geom.point_e(&[0.0; N_INPUTS]);
+    let rot = r_e_to_enu_at_point(geom);
+    move |e: &[f64]| {
+        let e: [f64; N_INPUTS] = e.try_into().expect("model input length");
+        let d = rot * (geom.point_e(&e) - nominal);
+        [d.x, d.y, d.z]
+    }
+}
+
+fn study(config: SensitivityConfig) -> Result<SensitivityReport> {
+    let sigmas = study_sigmas(&config)?;
+    let (names, sets) = study_factors();
+    let p = &config.points;
+    let mut points = Vec::with_capacity(p.count);
+    for k in 0..p.count {
+        let w = if p.count > 1 {
+            k as f64 / (p.count - 1) as f64
+        } else {
+            0.0
+        };
+        let rho = p.range_m[0] + w * (p.range_m[1] - p.range_m[0]);
+        let geom = study_point(&config, rho);
+        let seed = config.seed.wrapping_add(k as u64);
+        let design = SaltelliDesign::new(&sigmas, sets.clone(), config.samples, seed);
+        let sobol = design
+            .evaluate(enu_error_model(&geom))
+            .analyze(config.bootstrap, seed);
+        let j = r_e_to_enu_at_point(&geom) * geom.jacobian_e();
+        points.push(point_result(&geom, &j, &sigmas, &names, &sets, &sobol));
+    }
+    let summary = summarise(&names, &points);
+    let sigmas = Input::ALL
+        .iter()
+        .map(|i| (i.name().to_string(), sigmas[*i as usize]))
+        .collect();
+    Ok(SensitivityReport {
+        config,
+        sigmas,
+        points,
+        summary,
+        outputs: Vec::new(),
+    })
+}
+
+fn point_result(
+    geom: &PointGeometry,
+    j: &super::model::Jacobian,
+    sigmas: &[f64; N_INPUTS],
+    names: &[String],
+    sets: &[Vec<usize>],
+    sobol: &SobolIndices,
+) -> PointResult {
+    // contrib[k][i]: variance of output k (E, N, U, then their sum) from input i.
+    let mut contrib = [[0.0; N_INPUTS]; N_OUT + 1];
+    for i in 0..N_INPUTS {
+        for k in 0..N_OUT {
+            contrib[k][i] = (j[(k, i)] * sigmas[i]).powi(2);
+            contrib[N_OUT][i] += contrib[k][i];
+        }
+    }
+    let var: [f64; N_OUT + 1] = contrib.map(|c| c.iter().sum::<f64>());
+    let factors = names
+        .iter()
+        .zip(sets)
+        .enumerate()
+        .map(|(f, (name, set))| FactorRow {
+            factor: name.clone(),
+            kind: if f < N_INPUTS { "input" } else { "group" },
+            sobol: std::array::from_fn(|k| {
+                if k < N_OUT {
+                    sobol.per_output[k][f]
+                } else {
+                    sobol.combined[f]
+                }
+            }),
+            linear_share: std::array::from_fn(|k| {
+                set.iter().map(|&i| contrib[k][i]).sum::<f64>() / var[k].max(f64::MIN_POSITIVE)
+            }),
+        })
+        .collect();
+    PointResult {
+        range_m: geom.range_m,
+        beta_deg: geom.beta_rad.to_degrees(),
+        sigma_enu_m: std::array::from_fn(|k| var[k].sqrt()),
+        sigma_enu_mc_m: sobol.variance.map(f64::sqrt),
+        factors,
+    }
+}
+
+fn summarise(names: &[String], points: &[PointResult]) -> Vec<FactorSummary> {
+    let n = points.len().max(1) as f64;
+    let mut out = Vec::new();
+    for (f, name) in names.iter().enumerate() {
+        for (k, output) in OUTPUTS.iter().enumerate() {
+            let rows = points.iter().map(|p| (&p.factors[f], p.range_m));
+            let max_first = rows.clone().map(|(r, rho)| (r.sobol[k].first, rho)).fold(
+                (f64::NEG_INFINITY, 0.0),
+                |a, b| if b.0 > a.0 { b } else { a },
+            );
+            out.push(FactorSummary {
+                factor: name.clone(),
+                output,
+                mean_first: rows.clone().map(|(r, _)| r.sobol[k].first).sum::<f64>() / n,
+                mean_total: rows.clone().map(|(r, _)| r.sobol[k].total).sum::<f64>() / n,
+                mean_linear_share: rows.map(|(r, _)| r.linear_share[k]).sum::<f64>() / n,
+                max_first,
+            });
+        }
+    }
+    out
+}
+
+fn points_table(r: &SensitivityReport) -> String {
+    let mut s = String::from(
+        "range_m,beta_deg,factor,kind,output,first,first_conf,total,total_conf,linear_share\n",
+    );
+    for p in &r.points {
+        for f in &p.factors {
+            for (k, output) in OUTPUTS.iter().enumerate() {
+                let i = &f.sobol[k];
+                let _ = writeln!(
+                    s,
+                    "{:.3},{:.4},{},{},{output},{:.6},{:.6},{:.6},{:.6},{:.6}",
+                    p.range_m,
+                    p.beta_deg,
+                    f.factor,
+                    f.kind,
+                    i.first,
+                    i.first_conf,
+                    i.total,
+                    i.total_conf,
+                    f.linear_share[k]
+                );
+            }
+        }
+    }
+    s
+}
+
+/// Plot data: one row per range; for each factor and output, the first-order and total Sobol
+/// indices and the linear share (`<factor>_<output>_first`, `_total`, `_linear`).
+fn share_vs_range_table(r: &SensitivityReport) -> String {
+    let Some(first) = r.points.first() else {
+        return String::new();
+    };
+    let mut s = String::from("range_m,sigma_e_m,sigma_n_m,sigma_u_m");
+    for f in &first.factors {
+        for o in OUTPUTS {
+            let _ = write!(s, ",{0}_{o}_first,{0}_{o}_total,{0}_{o}_linear", f.factor);
+        }
+    }
+    s.push('\n');
+    for p in &r.points {
+        let [e, n, u, _] = p.sigma_enu_m;
+        let _ = write!(s, "{:.3},{e:.6},{n:.6},{u:.6}", p.range_m);
+        for f in &p.factors {
+            for k in 0..OUTPUTS.len() {
+                let i = &f.sobol[k];
+                let _ = write!(s, ",{:.6},{:.6},{:.6}", i.first, i.total, f.linear_share[k]);
+            }
+        }
+        s.push('\n');
+    }
+    s
+}

@@ -1,0 +1,383 @@
+//! The pipeline with an `[uncertainty]` table: sigma extra dimensions in the LAS, their values,
+//! rejection outside the SMRMSG span, configuration errors, and the run-time overhead.
+
+mod common;
+
+use common::*;
+use kinescan::georef::Sensor;
+use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
+use kinescan::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
+use kinescan::pipeline::config;
+use kinescan::pipeline::executor::{run, RunOptions};
+use kinescan::pipeline::report::RejectReason;
+use kinescan::timing::{Mirror, MirrorDirection, ScannerClock};
+use kinescan::trajectory::{PoseCursor, Trajectory, TrajectoryOptions};
+use kinescan::uncertainty::model::r_e_to_map_axes;
+use kinescan::uncertainty::{propagate, PointGeometry};
+use nalgebra::Vector3;
+use std::path::Path;
+
+const LEVER_ARM_B_M: [f64; 3] = [0.41, -0.27, -1.63];
+const BORESIGHT_DEG: [f64; 3] = [1.7, -2.3, 91.4];
+const TAU_S: f64 = 0.0037;
+const T0_S: f64 = T_START_S + 0.013;
+const PERIOD_S: f64 = 0.01;
+
+/// Full sigma set: Table 1 "expected" of paper 003 plus timing terms.
+const FULL: &str = r#"
+[uncertainty]
+sigma_lever_arm_b_m = [0.02, 0.02, 0.02]
+sigma_boresight_deg = [0.02, 0.02, 0.02]
+sigma_alpha_deg = 0.0055
+sigma_beta_deg = 0.0055
+sigma_range_m = 0.008
+sigma_range_zero_m = 0.01
+clock_covariance_s2 = [[1e-8, -1e-12], [-1e-12, 1e-15]]
+sigma_attitude_latency_s = 0.0005
+"#;
+
+/// Only the SMRMSG (INS) sigmas.
+const INS_ONLY: &str = r#"
+[uncertainty]
+sigma_lever_arm_b_m = [0.0, 0.0, 0.0]
+sigma_boresight_deg = [0.0, 0.0, 0.0]
+sigma_alpha_deg = 0.0
+sigma_beta_deg = 0.0
+sigma_range_m = 0.0
+sigma_range_zero_m = 0.0
+clock_covariance_s2 = [[0.0, 0.0], [0.0, 0.0]]
+sigma_attitude_latency_s = 0.0
+write_95 = false
+"#;
+
+fn clock() -> ScannerClock {
+    ScannerClock {
+        t0_s: T0_S,
+        period_s: PERIOD_S,
+        mirror: Mirror {
+            beta_start_rad: -std::f64::consts::PI,
+            direction: MirrorDirection::Increasing,
+        },
+    }
+}
+
+/// Profiles over the whole trajectory, `per_profile` returns each at random beta; ranges of a
+/// parking-lot-like scene (flat ground 2.5 m below the scanner, nothing beyond 80 m, 5 cm of
+/// noise), so consecutive returns of a profile are close as in real data.
+fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
+    let mut w = ProfileWriter::create(path, ProfileColumns::default()).unwrap();
+    let mut rng = Lcg(7);
+    let profiles = ((DURATION_S - 0.1) / PERIOD_S) as u32;
+    let mut all = Vec::new();
+    for n in 0..profiles {
+        let mut betas: Vec<f64> = (0..per_profile).map(|_| rng.range(-3.1, 3.1)).collect();
+        betas.sort_by(f64::total_cmp);
+        for beta in betas {
+            let r = RawReturn {
+                profile: n,
+                intensity: 10,
+                beta_rad: beta,
+                range_m: (2.5 / beta.cos().max(0.03)).min(80.0) + rng.range(0.0, 0.05),
+                alpha_rad: 0.0,
+                time_s: 0.0,
+            };
+            w.push(&r).unwrap();
+            all.push(r);
+        }
+    }
+    w.finish().unwrap();
+    all
+}
+
+fn write_pipeline(dir: &Path, smrmsg: &str, uncertainty: &str) -> std::path::PathBuf {
+    let text = format!(
+        r#"[inputs]
+sbet = "traj.sbet"
+smrmsg = "{smrmsg}"
+profiles = ["pass.ksprof"]
+
+[sensor]
+lever_arm_b_m = {LEVER_ARM_B_M:?}
+boresight_deg = {BORESIGHT_DEG:?}
+min_range_m = 1.0
+max_range_m = 200.0
+
+[time]
+t0_s = {T0_S}
+period_s = {PERIOD_S}
+beta_start_deg = -180.0
+
+[latency]
+attitude_s = {TAU_S}
+
+[output]
+las = "out/cloud.las"
+frame = {{ kind = "utm" }}
+{uncertainty}"#
+    );
+    let path = dir.join("pipeline.toml");
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+fn quiet() -> RunOptions {
+    RunOptions {
+        threads: Some(2),
+        progress: false,
+        chunk_returns: 4096,
+    }
+}
+
+/// Extra dimension names and per-point f32 values of a LAS file.
+fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
+    let mut reader = las::Reader::from_path(path).unwrap();
+    let names = reader
+        .header()
+        .all_vlrs()
+        .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
+        .map(|v| {
+            v.data
+                .chunks(192)
+                .map(|d| {
+                    String::from_utf8_lossy(&d[4..36])
+                        .trim_end_matches('\0')
+                        .to_string()
+                })
+                .collect()
+        })
+        .unwrap();
+    let values = reader
+        .read_all()
+        .unwrap()
+        .points()
+        .map(|p| {
+            p.unwrap()
+                .extra_bytes
+                .chunks(4)
+                .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+                .collect()
+        })
+        .collect();
+    (names, values)
+}
+
+/// With INS sigmas only, the position sigma passes straight to the point: sigma_z = down
+/// sigma (0.04 m) and the horizontal sigma = sqrt(2) 0.02 m times the UTM scale factor
+/// (|k - 1| <= 4e-4 near a central meridian), all variance in the INS groups.
+#[test]
+fn ins_sigmas_reach_the_las_along_the_map_axes() {
+    let dir = tempfile::tempdir().unwrap();
+    write_trajectory(dir.path());
+    write_profiles(&dir.path().join("pass.ksprof"), 3);
+    let path = write_pipeline(dir.path(), "traj.smrmsg", INS_ONLY);
+    let mut c = std::fs::read_to_string(&path).unwrap();
+    // Attitude sigmas off in this check: the SMRMSG attitude terms grow with range.
+    c = c.replace("smrmsg = \"traj.smrmsg\"", "smrmsg = \"pos_only.smrmsg\"");
+    std::fs::write(&path, c).unwrap();
+    write_smrmsg(
+        &dir.path().join("pos_only.smrmsg"),
+        T_START_S,
+        DURATION_S,
+        0.0,
+    );
+    let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();
+    let (names, values) = read_extra(&dir.path().join("out/cloud.las"));
+    let expect = [
+        "range",
+        "sigma_x",
+        "sigma_y",
+        "sigma_z",
+        "share_ins_position",
+        "share_ins_attitude",
+        "share_lever_arm",
+        "share_boresight",
+        "share_scanner",
+        "share_timing",
+    ];
+    assert_eq!(names, expect);
+    assert_eq!(values.len() as u64, report.totals.written);
+    for v in &values {
+        let horiz = (v[1] as f64).hypot(v[2] as f64);
+        assert!((v[3] as f64 - 0.04).abs() < 4e-6, "sigma_z {}", v[3]);
+        assert!(
+            (horiz / (0.02 * 2f64.sqrt()) - 1.0).abs() < 5e-4,
+            "horizontal {horiz}"
+        );
+        assert!((v[4] - 1.0).abs() < 1e-6 && v[5..].iter().all(|s| *s == 0.0));
+    }
+}
+
+/// Writes an SMRMSG at 1 Hz over `[t0, t0 + span]`: position 0.02/0.02/0.04 m, attitude
+/// `att_arcmin`.
+fn write_smrmsg(path: &Path, t0: f64, span: f64, att_arcmin: f64) {
+    let mut s = SmrmsgWriter::create(path).unwrap();
+    for k in 0..=(span as usize) {
+        s.push(&SmrmsgRecord {
+            time_s: t0 + k as f64,
+            north_m: 0.02,
+            east_m: 0.02,
+            down_m: 0.04,
+            vel_north_mps: 0.01,
+            vel_east_mps: 0.01,
+            vel_down_mps: 0.01,
+            roll_arcmin: att_arcmin,
+            pitch_arcmin: att_arcmin,
+            heading_arcmin: att_arcmin,
+        })
+        .unwrap();
+    }
+    s.finish().unwrap();
+}
+
+/// Every written point carries the library's propagated covariance for its return (the
+/// pipeline passes the right pose, SMRMSG time, clock partials and map axes), to f32.
+#[test]
+fn written_sigmas_equal_the_library_propagation() {
+    let dir = tempfile::tempdir().unwrap();
+    let (sbet, smrmsg) = write_trajectory(dir.path());
+    let raw = write_profiles(&dir.path().join("pass.ksprof"), 2);
+    let path = write_pipeline(dir.path(), "traj.smrmsg", FULL);
+    let loaded = config::load(&path, &[]).unwrap();
+    let report = run(&loaded, &quiet()).unwrap();
+    assert_eq!(report.totals.written as usize, raw.len());
+    let (names, values) = read_extra(&dir.path().join("out/cloud.las"));
+    assert_eq!(
+        &names[1..6],
+        ["sigma_x", "sigma_y", "sigma_z", "thu95", "tvu95"]
+    );
+
+    let traj = Trajectory::open(&sbet, Some(&smrmsg), TrajectoryOptions::default()).unwrap();
+    let mut poses = PoseCursor::new(&traj, TAU_S, 0.0);
+    let mut sig = traj.sigma_cursor().unwrap();
+    let sensor = Sensor::new(
+        Vector3::from(LEVER_ARM_B_M),
+        Vector3::from(BORESIGHT_DEG.map(f64::to_radians)),
+        0.0,
+        0.0,
+    );
+    let frame = kinescan::geo::projection::MapFrame::utm(32, true).unwrap();
+    let inputs = loaded.config.uncertainty.as_ref().unwrap().inputs();
+    let mut worst: f64 = 0.0;
+    for (r, v) in raw.iter().zip(&values).step_by(97) {
+        let t = clock().time_of(r.profile, r.beta_rad);
+        let pose = poses.at(t).unwrap();
+        let geom = PointGeometry::from_pose(&pose, &sensor, 0.0, r.beta_rad, r.range_m);
+        let x_e = geom.point_e(&[0.0; 18]);
+        let (a, b) = clock().partials(r.profile, r.beta_rad);
+        let cov = propagate(
+            &geom,
+            &inputs,
+            &sig.at(t).unwrap(),
+            [a, b],
+            &r_e_to_map_axes(&frame, &x_e),
+        );
+        let s = cov.sigma_xyz_m();
+        let want = [s.x, s.y, s.z, cov.thu95_m(), cov.tvu95_m()];
+        let shares = cov.shares();
+        // The pipeline reuses the map axes within 5 m (MapAxesCache): < 1.7e-6 rad here, times
+        // sigma ratios below 10, plus f32 rounding (6e-8).
+        for k in 0..5 {
+            let rel = (v[1 + k] as f64 / want[k] - 1.0).abs();
+            worst = worst.max(rel);
+            assert!(rel < 2e-5, "field {k}: {} vs {}", v[1 + k], want[k]);
+        }
+        for g in 0..6 {
+            assert!((v[6 + g] as f64 - shares[g]).abs() < 2e-5);
+        }
+    }
+    println!("LAS sigmas vs library: worst relative difference {worst:e}");
+}
+
+/// Returns outside the SMRMSG span are rejected as `outside_accuracy`; the rest are written.
+#[test]
+fn returns_outside_the_smrmsg_span_are_rejected() {
+    let dir = tempfile::tempdir().unwrap();
+    write_trajectory(dir.path());
+    write_smrmsg(&dir.path().join("short.smrmsg"), T_START_S + 5.0, 10.0, 0.3);
+    let raw = write_profiles(&dir.path().join("pass.ksprof"), 2);
+    let path = write_pipeline(dir.path(), "short.smrmsg", FULL);
+    let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();
+    let outside = raw
+        .iter()
+        .filter(|r| {
+            let t = clock().time_of(r.profile, r.beta_rad);
+            !(T_START_S + 5.0..=T_START_S + 15.0).contains(&t)
+        })
+        .count() as u64;
+    assert!(outside > 0);
+    let rejected = report
+        .totals
+        .rejected
+        .get(&RejectReason::OutsideAccuracy)
+        .copied();
+    assert_eq!(rejected, Some(outside));
+    assert_eq!(report.totals.written, raw.len() as u64 - outside);
+}
+
+/// `[uncertainty]` without an SMRMSG file, an unknown key, a negative sigma and a
+/// non-positive-semi-definite clock covariance are refused, naming the key.
+#[test]
+fn bad_uncertainty_tables_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = write_pipeline(dir.path(), "traj.smrmsg", FULL);
+    let text = std::fs::read_to_string(&path).unwrap();
+    let cases = [
+        (
+            text.replace("smrmsg = \"traj.smrmsg\"\n", ""),
+            "inputs.smrmsg",
+        ),
+        (
+            text.replace("sigma_range_m", "sigma_rang_m"),
+            "sigma_rang_m",
+        ),
+        (
+            text.replace("sigma_range_m = 0.008", "sigma_range_m = -0.008"),
+            "uncertainty",
+        ),
+        (
+            text.replace("-1e-12, 1e-15", "-1e-10, 1e-15"),
+            "clock_covariance_s2",
+        ),
+    ];
+    for (bad, key) in cases {
+        std::fs::write(&path, bad).unwrap();
+        let err = config::load(&path, &[]).unwrap_err().to_string();
+        assert!(err.contains(key), "expected `{key}` in: {err}");
+    }
+}
+
+/// Run time with and without uncertainty on 1.2 M returns, best of 5 interleaved runs each
+/// (the machine is shared; the minimum is the least disturbed). A measurement, not run by
+/// default: `cargo test --test uncertainty_pipeline -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn benchmark_uncertainty_overhead() {
+    let dir = tempfile::tempdir().unwrap();
+    write_trajectory(dir.path());
+    let raw = write_profiles(&dir.path().join("pass.ksprof"), 600);
+    let sigmas_only = format!("{FULL}write_95 = false\nwrite_shares = false\n");
+    let cases = [
+        ("none", ""),
+        ("all fields", FULL),
+        ("sigmas only", &sigmas_only),
+    ];
+    let mut best = [f64::INFINITY; 3];
+    for _ in 0..5 {
+        for (k, (_, u)) in cases.iter().enumerate() {
+            let path = write_pipeline(dir.path(), "traj.smrmsg", u);
+            let loaded = config::load(&path, &[]).unwrap();
+            let start = std::time::Instant::now();
+            run(&loaded, &quiet()).unwrap();
+            best[k] = best[k].min(start.elapsed().as_secs_f64());
+        }
+    }
+    for (k, (name, _)) in cases.iter().enumerate() {
+        println!(
+            "uncertainty {name}: {} returns in {:.2} s, {:.0} returns/s, overhead {:.0}%",
+            raw.len(),
+            best[k],
+            raw.len() as f64 / best[k],
+            (best[k] / best[0] - 1.0) * 100.0
+        );
+    }
+}
