@@ -277,6 +277,28 @@ fn every_return_is_written_or_rejected_with_a_reason() {
         input.counter_jumps.min(10)
     );
 
+    // With `return_index`, every written point names its raw record: the good ones.
+    let set = ["output.return_index_dimension=true".to_string()];
+    run(
+        &config::load(&f.dir.path().join("bad.toml"), &set).unwrap(),
+        &quiet(2),
+    )
+    .unwrap();
+    let pts = read_las(&f.dir.path().join("out/cloud.las"));
+    let idx: Vec<usize> = pts
+        .iter()
+        .map(|p| f64::from_le_bytes(p.extra_bytes[4..12].try_into().unwrap()) as usize)
+        .collect();
+    let good: Vec<usize> = (0..t.read as usize)
+        .filter(|&i| {
+            let r = kinescan::io::profiles::ProfileFile::open(&f.dir.path().join("bad.ksprof"))
+                .unwrap()
+                .get(i);
+            r.range_m > 0.0 && r.range_m < 200.0 && i + 1 < t.read as usize
+        })
+        .collect();
+    assert_eq!(idx, good);
+
     // Strict mode names the file and the first bad record.
     let strict = ["output.strictness=\"fail\"".to_string()];
     let err = run(
@@ -355,4 +377,101 @@ fn unknown_keys_and_bad_values_are_refused_with_the_key_named() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("zone"), "{err}");
+}
+
+#[test]
+fn csv_and_binary_profiles_give_identical_las() {
+    let f = fixture(3_000);
+    let d = f.dir.path();
+    kinescan::io::profiles_csv::export_csv(&d.join("pass1.ksprof"), &d.join("pass1.csv")).unwrap();
+    let csv = [
+        "inputs.profiles=[\"pass1.csv\"]".to_string(),
+        "output.las=\"out/csv.las\"".to_string(),
+    ];
+    let report = run(
+        &config::load(&d.join("pipeline.toml"), &csv).unwrap(),
+        &quiet(2),
+    )
+    .unwrap();
+    assert_eq!(report.totals.written, f.truth_e.len() as u64);
+    assert!(
+        report.inputs[0].file.path.ends_with("pass1.csv"),
+        "the report names the CSV read"
+    );
+    run(
+        &config::load(&d.join("pipeline.toml"), &[]).unwrap(),
+        &quiet(2),
+    )
+    .unwrap();
+    let a = std::fs::read(d.join("out/csv.las")).unwrap();
+    let b = std::fs::read(d.join("out/cloud.las")).unwrap();
+    assert!(a == b, "CSV and binary inputs must give the same bytes");
+}
+
+#[test]
+fn hardware_time_tags_per_return_and_per_profile() {
+    let f = fixture(2_000);
+    let d = f.dir.path();
+    let src = kinescan::io::profiles::ProfileFile::open(&d.join("pass1.ksprof")).unwrap();
+    let (c, cols) = (
+        clock(),
+        ProfileColumns {
+            alpha: true,
+            time: true,
+        },
+    );
+    let mut per_return = ProfileWriter::create(&d.join("ret.ksprof"), cols).unwrap();
+    let mut per_profile = ProfileWriter::create(&d.join("prof.ksprof"), cols).unwrap();
+    for i in 0..src.len() {
+        let r = src.get(i);
+        // PPS tags: the profile's start time and the return's own time (SPEC 2).
+        let t_n = c.t0_s + c.period_s * r.profile as f64;
+        per_profile.push(&RawReturn { time_s: t_n, ..r }).unwrap();
+        per_return
+            .push(&RawReturn {
+                time_s: c.time_of(r.profile, r.beta_rad),
+                ..r
+            })
+            .unwrap();
+    }
+    per_return.finish().unwrap();
+    per_profile.finish().unwrap();
+    let frame = MapFrame::utm(32, true).unwrap();
+    for (file, model) in [
+        ("ret.ksprof", "hardware_return"),
+        ("prof.ksprof", "hardware_profile"),
+    ] {
+        let set = [
+            format!("inputs.profiles=[\"{file}\"]"),
+            format!("time.model=\"{model}\""),
+            format!("output.las=\"out/{model}.las\""),
+        ];
+        let report = run(
+            &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+            &quiet(2),
+        )
+        .unwrap();
+        assert_eq!(report.totals.written, f.truth_e.len() as u64, "{model}");
+        let pts = read_las(&d.join(format!("out/{model}.las")));
+        let worst = pts
+            .iter()
+            .zip(&f.truth_e)
+            .map(|(p, x)| {
+                (Vector3::new(p.x, p.y, p.z) - frame.geodetic_to_map(ecef_to_geodetic(x))).norm()
+            })
+            .fold(0.0, f64::max);
+        // Same bound as the software-clock round trip (quantisation 8.7 um).
+        assert!(worst <= 1e-4, "{model}: worst {worst} m");
+    }
+    // A time model that needs tags refuses a file without them, naming it.
+    let set = ["time.model=\"hardware_return\"".to_string()];
+    let err = run(
+        &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+        &quiet(1),
+    )
+    .unwrap_err();
+    assert!(
+        err.to_string().contains("pass1.ksprof") && err.to_string().contains("time_s"),
+        "{err}"
+    );
 }

@@ -61,10 +61,17 @@ pub fn q_b_to_n(roll_rad: f64, pitch_rad: f64, heading_rad: f64) -> UnitQuaterni
 }
 
 /// Inverse of [`r_zyx`]: `(x, y, z)` angles (rad) with x, z in (-pi, pi], y in [-pi/2, pi/2].
+///
+/// At gimbal lock (|y| = pi/2) only x -/+ z is defined: x comes out of rounding noise and z is
+/// solved from `R * Rx(x)^T = Rz(z) * Ry(y)`, so `r_zyx` of the result reproduces `r` to
+/// ~1e-15 for every rotation.
 pub fn zyx_angles(r: &Matrix3<f64>) -> (f64, f64, f64) {
-    let y = (-r[(2, 0)]).clamp(-1.0, 1.0).asin();
+    // atan2 rather than asin: keeps full precision near |y| = pi/2.
+    let y = (-r[(2, 0)]).atan2(r[(2, 1)].hypot(r[(2, 2)]));
     let x = r[(2, 1)].atan2(r[(2, 2)]);
-    let z = r[(1, 0)].atan2(r[(0, 0)]);
+    let (sx, cx) = x.sin_cos();
+    // Columns 1 of R Rx(x)^T and of Rz Ry are (r01 cx - r02 sx, r11 cx - r12 sx, .) = (-sz, cz, 0).
+    let z = (r[(0, 2)] * sx - r[(0, 1)] * cx).atan2(r[(1, 1)] * cx - r[(1, 2)] * sx);
     (x, y, z)
 }
 

@@ -165,7 +165,7 @@ fn writable(p: &PlanarPatch) -> bool {
         && (Vector3::from(n).norm() - 1.0).abs() <= NORMAL_UNIT_TOL
         && p.half_length_m > 0.0
         && p.half_height_m > 0.0
-        && p.sigma_m.map_or(true, |s| s.is_finite() && s > 0.0)
+        && p.sigma_m.is_none_or(|s| s.is_finite() && s > 0.0)
 }
 
 /// Writes `patches` atomically (shortest round-trip formatting of every f64; angles in

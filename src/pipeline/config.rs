@@ -231,6 +231,10 @@ pub struct OutputConfig {
     /// Write the measured range (m) as an extra dimension `range`.
     #[serde(default = "yes")]
     pub range_dimension: bool,
+    /// Write each point's 0-based record index in its profile file as the extra dimension
+    /// `return_index` (float64, exact to 2^53), to trace a point back to its raw return.
+    #[serde(default)]
+    pub return_index_dimension: bool,
 }
 
 fn one_u16() -> u16 {
@@ -406,7 +410,7 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
             ),
         );
     }
-    if o.split == SplitMode::MaxPoints && !o.max_points_per_file.is_some_and(|n| n > 0) {
+    if o.split == SplitMode::MaxPoints && o.max_points_per_file.is_none_or(|n| n == 0) {
         return bad(
             "output.max_points_per_file",
             "split = \"max_points\" needs max_points_per_file > 0".into(),

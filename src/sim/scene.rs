@@ -400,7 +400,7 @@ fn intersect(s: &Shape, o: &Vector3<f64>, d: &Vector3<f64>, t_min: f64, t_max: f
                 if t > t_min
                     && t < t_max
                     && px * px + py * py <= r * r
-                    && best.map_or(true, |h| t < h.t_m)
+                    && best.is_none_or(|h| t < h.t_m)
                 {
                     best = Some(Hit {
                         t_m: t,
