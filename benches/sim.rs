@@ -1,6 +1,10 @@
 //! Simulator throughput and memory: the survey-day scenario at two durations, returns/s with
 //! 1 and 2 threads and peak RSS (VmHWM) of each run, each run in its own process.
 //!
+//! Output goes to a temporary directory in `KINESCAN_SIM_BENCH_DIR`, else `/dev/shm` when it
+//! exists (generation speed, not the disk's), else the system temp dir. CPU seconds (user +
+//! system) are printed beside wall-clock time: on a shared machine they show the work done.
+//!
 //! `cargo bench --bench sim`; `KINESCAN_SIM_BENCH_S="20,80"` sets the two durations (s).
 
 use kinescan::sim::{simulate, SimOptions};
@@ -15,8 +19,33 @@ fn peak_rss_mib() -> f64 {
         .map_or(f64::NAN, |kb| kb / 1024.0)
 }
 
+/// User + system CPU seconds of this process (from /proc/self/stat, 100 ticks/s).
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = s
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let tick = |i: usize| {
+        f.get(i)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    (tick(11) + tick(12)) / 100.0
+}
+
+fn out_root() -> std::path::PathBuf {
+    match std::env::var_os("KINESCAN_SIM_BENCH_DIR") {
+        Some(d) => d.into(),
+        None if Path::new("/dev/shm").is_dir() => "/dev/shm".into(),
+        None => std::env::temp_dir(),
+    }
+}
+
 fn child(duration_s: f64, threads: usize) {
-    let dir = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir_in(out_root()).unwrap();
     let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenario_survey_day.toml");
     let opts = SimOptions {
         threads: Some(threads),
@@ -25,10 +54,12 @@ fn child(duration_s: f64, threads: usize) {
     };
     let s = simulate(&scenario, dir.path(), &opts).unwrap();
     println!(
-        "duration {duration_s:>6.0} s  threads {threads}  returns {:>11}  time {:>7.2} s  {:>6.2} M returns/s  peak RSS {:>7.1} MiB",
+        "duration {duration_s:>6.0} s  threads {threads}  returns {:>11}  wall {:>7.2} s  {:>6.2} M returns/s  CPU {:>7.2} s ({:>5.2} M returns per CPU s)  peak RSS {:>6.1} MiB",
         s.returns,
         s.elapsed_s,
         s.returns as f64 / s.elapsed_s / 1e6,
+        cpu_s(),
+        s.returns as f64 / cpu_s() / 1e6,
         peak_rss_mib()
     );
 }

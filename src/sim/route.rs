@@ -187,7 +187,12 @@ impl Route {
         v[n - 1] = 0.0;
         dwell[0] = cfg.lap_start_dwell_s;
         for s in &cfg.stops {
-            let i = ((s.at_m / DS_M).round() as usize).clamp(1, n - 2);
+            // Never next to the lap ends or another stop: two standing grid points in a row
+            // would take forever to drive between. Such stops merge.
+            let mut i = ((s.at_m / DS_M).round() as usize).clamp(2, n - 3);
+            if let Some(j) = [i - 1, i + 1].into_iter().find(|&j| v[j] == 0.0) {
+                i = j;
+            }
             v[i] = 0.0;
             dwell[i] += s.dwell_s;
         }
