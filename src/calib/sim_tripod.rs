@@ -15,6 +15,7 @@
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
 use super::files::{self, write_atomic};
 use crate::geo::rotations::{r_b_to_n, r_zyx};
+use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use rand::SeedableRng;
@@ -267,11 +268,17 @@ pub fn histogram_bins(
         .collect()
 }
 
+/// Angle names of the misalignment components, in order.
+const ANGLES: [&str; 3] = ["roll", "pitch", "heading"];
+
 /// Writes a Monte Carlo's outputs into `out_dir` atomically, tagged by the noise in mm:
-/// `boresight_mc_<mm>mm.json` (summary), `..._errors.csv` (per trial) and `..._histograms.csv`
-/// (40 bins per angle, from [`histogram_bins`]).
+/// `boresight_mc_<mm>mm.json` (summary), `..._errors.csv` (per trial), `..._histograms.csv`
+/// (40 bins per angle, from [`histogram_bins`]) and one PNG histogram per angle,
+/// `..._<roll|pitch|heading>.png` (paper 002, figs 4-5: 40 bins over the errors' range, x axis
+/// symmetric about 0).
 pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Result<()> {
-    let tag = format!("boresight_mc_{}mm", mc.sigma_centre_m * 1e3);
+    let mm = mc.sigma_centre_m * 1e3;
+    let tag = format!("boresight_mc_{mm}mm");
     files::write_json(&out_dir.join(format!("{tag}.json")), mc)?;
     let mut s = String::from("trial,roll_error_deg,pitch_error_deg,heading_error_deg\n");
     for (i, e) in mc.errors_deg.iter().enumerate() {
@@ -279,13 +286,29 @@ pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Resu
     }
     write_atomic(&out_dir.join(format!("{tag}_errors.csv")), s.as_bytes())?;
     let mut h = String::from("angle,bin_low_deg,bin_high_deg,count\n");
-    for (k, name) in ["roll", "pitch", "heading"].iter().enumerate() {
-        for (lo, hi, c) in histogram_bins(&mc.errors_deg, k, 40) {
+    for (k, name) in ANGLES.iter().enumerate() {
+        let bins = histogram_bins(&mc.errors_deg, k, 40);
+        for (lo, hi, c) in &bins {
             let _ = writeln!(h, "{name},{lo:.8},{hi:.8},{c}");
         }
+        let values: Vec<f64> = mc.errors_deg.iter().map(|e| e[k]).collect();
+        let lim = bins.last().map_or(1.0, |b| b.1);
+        Plot::new(
+            &format!(
+                "Boresight {name} error, {mm} mm ellipse-centre noise, {} trials",
+                mc.trials
+            ),
+            &format!("{name} error (deg)"),
+            "trials",
+        )
+        .x_range(-lim, lim)
+        .histogram(
+            &format!("sigma {:.4} deg", mc.empirical_sigma_deg[k]),
+            &values,
+            40,
+        )
+        .save_png(out_dir.join(format!("{tag}_{name}.png")))?;
     }
-    // PNG: the lead wires `kinescan::plot` here after merging (one PNG per noise level, three
-    // panels from `histogram_bins`, file `{tag}_histograms.png`).
     write_atomic(&out_dir.join(format!("{tag}_histograms.csv")), h.as_bytes())
 }
 
