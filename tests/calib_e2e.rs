@@ -162,3 +162,25 @@ fn cut_missing_a_leg_is_a_clear_error() {
         "{e}"
     );
 }
+
+/// Returns are read by the shared SPEC 6 reader: its header and line checks apply, and the
+/// latency calibration's own requirement (a `time_s` column) is a clear error.
+#[test]
+fn returns_file_errors_name_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("returns.csv");
+    std::fs::write(&p, "profile,beta_rad,range_m,intensity\n0,0.1,1.5,100\n").unwrap();
+    let e = kinescan::calib::latency::read_returns(&p, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("returns.csv") && e.contains("time_s"), "{e}");
+    std::fs::write(
+        &p,
+        "profile,beta_rad,range_m,intensity,time_s\n0,0.1,1.5,100,1.0\n0,0.2,,,1.1\n1,x,1.5,100,1.2\n",
+    )
+    .unwrap();
+    let e = kinescan::calib::latency::read_returns(&p, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("returns.csv") && e.contains("line 4"), "{e}");
+}

@@ -602,8 +602,11 @@ pub fn read_attitude(path: &Path) -> Result<Vec<AttitudeSample>> {
     Ok(out)
 }
 
-/// `kinescan calibrate latency`: reads the TOML config at `config_path` and the files it names,
-/// estimates the latency and writes `latency.json` (the [`LatencyReport`]),
+/// `kinescan calibrate latency`: reads the TOML config at `config_path` (a [`LatencyConfig`];
+/// unknown keys refused, errors name the key and the file) and the files it names (paths
+/// relative to the config: SPEC 6 returns with `time_s`, the table's pass log, the IMU attitude
+/// stream in SPEC angles), estimates the total latency `tau` (s; SPEC sign: the attitude of
+/// `t + tau` belongs to a return at `t`) and writes `latency.json` (the [`LatencyReport`]),
 /// `latency_by_speed.csv` (the Table-2-like table) and `latency_by_speed.png` ([`latency_plot`])
 /// atomically into `out_dir`.
 pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<LatencyReport> {

@@ -149,7 +149,7 @@ pub fn solve_site(
             let legs = leg_directions_s(c, &apex);
             let mean_n = r_s_to_n_prior * (legs[0] + legs[1] + legs[2]);
             let score = mean_n.normalize().dot(axis_n);
-            if best.as_ref().map_or(true, |(s, _)| score > *s) {
+            if best.as_ref().is_none_or(|(s, _)| score > *s) {
                 best = Some((
                     score,
                     TripodSolution {
