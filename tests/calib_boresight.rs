@@ -2,7 +2,7 @@
 
 use kinescan::calib::boresight::estimate_boresight;
 use kinescan::calib::sim_tripod::{
-    run_monte_carlo, simulate_sites, MonteCarloSummary, TripodScenario,
+    run_monte_carlo, simulate_sites, MonteCarloSummary, SiteRotation, TripodScenario,
 };
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -12,8 +12,15 @@ use rand_chacha::ChaCha8Rng;
 /// 2 standard errors (sigma/sqrt(1000)) as the issue asks, per angle.
 const TRIALS: usize = 1000;
 
+/// Cramer-Rao bound (1 sigma, deg, at 1 mm centre noise; scales with the noise) of the default
+/// scenario's geometry with the paper's sites composed SPEC's way (`zyx`) and in the order of
+/// the paper's printed matrix (`xyz`), from the independent `tests/oracle/boresight_crb.py`.
+const BOUND_ZYX_1MM_DEG: [f64; 3] = [0.07589, 0.02814, 0.85173];
+const BOUND_XYZ_1MM_DEG: [f64; 3] = [0.0254, 0.03448, 0.03822];
+
 /// Unbiasedness and predicted covariance (issue acceptance) and a printout of the error levels
-/// against the paper's (not asserted: this geometry does not reach them, see docs).
+/// against the paper's (not asserted: no physically consistent reading of the paper's geometry
+/// reaches them, see docs/calibration.md).
 fn check(mc: &MonteCarloSummary, paper_deg: [f64; 3]) {
     println!(
         "sigma_centre {} m: mean {:.5?} sd {:.5?} pred {:.5?} p99 {:.5?} (paper {paper_deg:?}) max {:.5?} conv<=5 {} max it {}",
@@ -35,6 +42,19 @@ fn check(mc: &MonteCarloSummary, paper_deg: [f64; 3]) {
     }
 }
 
+/// The estimator is efficient: its empirical sigma is the Cramer-Rao bound. In the linear
+/// regime the ratio is 1 up to sampling: 10 % is 4.5 standard errors of a 1000-trial sigma.
+fn attains_bound(mc: &MonteCarloSummary, bound_1mm_deg: [f64; 3]) {
+    for (k, b) in bound_1mm_deg.iter().enumerate() {
+        let bound = b * mc.sigma_centre_m / 1e-3;
+        let ratio = mc.empirical_sigma_deg[k] / bound;
+        assert!(
+            (ratio - 1.0).abs() < 0.1,
+            "angle {k}: empirical/bound {ratio}"
+        );
+    }
+}
+
 #[test]
 fn monte_carlo_1_mm() {
     let sc = TripodScenario {
@@ -44,9 +64,10 @@ fn monte_carlo_1_mm() {
     };
     let mc = run_monte_carlo(&sc, TRIALS).unwrap();
     check(&mc, [0.01, 0.01, 0.05]);
-    // Issue acceptance: <= 5 iterations in >= 99 % of trials. (At 1 cm this geometry gives
-    // heading errors of ~9 deg sigma, far outside the linear regime; there 98.9 % converge
-    // within 5 and all within 7: printed by `monte_carlo_1_cm`, reported, not asserted.)
+    attains_bound(&mc, BOUND_ZYX_1MM_DEG);
+    // Issue acceptance: <= 5 iterations in >= 99 % of trials. (At 1 cm this reading of the
+    // sites gives heading errors of ~9 deg sigma, far outside the linear regime; there ~99 %
+    // converge within 5: printed by `monte_carlo_1_cm`, not asserted.)
     assert!(mc.share_converged_within_5 >= 0.99);
 }
 
@@ -58,6 +79,26 @@ fn monte_carlo_1_cm() {
         ..TripodScenario::default()
     };
     check(&run_monte_carlo(&sc, TRIALS).unwrap(), [0.1, 0.1, 0.5]);
+}
+
+/// The paper's sites composed in the order of its printed matrix (`Rx Ry Rz`): the relative
+/// rotations between sites are no longer all within 5.4 deg of the body z axis, the heading is
+/// observable, and both noise levels stay in the linear regime: unbiased, predicted = empirical
+/// = the bound, <= 5 iterations in >= 99 % of trials (the issue's acceptance) at 1 mm and 1 cm.
+#[test]
+fn paper_site_order_xyz() {
+    for (seed, sigma, paper) in [(21, 0.001, [0.01, 0.01, 0.05]), (22, 0.01, [0.1, 0.1, 0.5])] {
+        let sc = TripodScenario {
+            sigma_centre_m: sigma,
+            seed,
+            site_rotation: SiteRotation::Xyz,
+            ..TripodScenario::default()
+        };
+        let mc = run_monte_carlo(&sc, TRIALS).unwrap();
+        check(&mc, paper);
+        attains_bound(&mc, BOUND_XYZ_1MM_DEG);
+        assert!(mc.share_converged_within_5 >= 0.99);
+    }
 }
 
 #[test]

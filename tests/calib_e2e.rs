@@ -14,6 +14,24 @@ fn pipeline(name: &str) -> PathBuf {
         .join(name)
 }
 
+/// Decodes the PNG at `path` and checks it is a plot (default 800 x 500 px) with data drawn in
+/// the first palette colour. Set `KINESCAN_PLOT_OUT=dir` to keep a copy for a visual check.
+fn assert_plot_png(path: &Path) {
+    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = decoder.read_info().unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert!(info.width >= 400 && info.height >= 300, "{path:?}");
+    let data_pixels = buf[..info.buffer_size()]
+        .chunks(3)
+        .filter(|p| *p == kinescan::plot::PALETTE[0])
+        .count();
+    assert!(data_pixels > 100, "{path:?}: {data_pixels} data pixels");
+    if let Some(keep) = std::env::var_os("KINESCAN_PLOT_OUT") {
+        std::fs::copy(path, Path::new(&keep).join(path.file_name().unwrap())).unwrap();
+    }
+}
+
 fn truth(dir: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
 }
@@ -21,7 +39,8 @@ fn truth(dir: &Path) -> serde_json::Value {
 #[test]
 fn latency_scenario_to_calibration() {
     let dir = tempfile::tempdir().unwrap();
-    let n = run_table_simulation(&pipeline("calib_sim_table.toml"), dir.path()).unwrap();
+    let sim = run_table_simulation(&pipeline("calib_sim_table.toml"), dir.path()).unwrap();
+    let n = sim.n_returns;
     assert!(n > 300_000, "{n} returns");
     let r = run_latency_calibration(&dir.path().join("calib_latency.toml"), dir.path()).unwrap();
     let tau = truth(dir.path())["latency_s"].as_f64().unwrap();
@@ -40,6 +59,7 @@ fn latency_scenario_to_calibration() {
     assert_eq!(json["latency_s"].as_f64(), Some(r.latency_s));
     let table = std::fs::read_to_string(dir.path().join("latency_by_speed.csv")).unwrap();
     assert_eq!(table.lines().count(), 8, "header + 6 speeds + combined");
+    assert_plot_png(&dir.path().join("latency_by_speed.png"));
 }
 
 #[test]
@@ -62,6 +82,9 @@ fn boresight_scenario_to_calibration() {
         "boresight_mc_1mm_histograms.csv",
     ] {
         assert!(dir.path().join(f).exists(), "{f}");
+    }
+    for angle in ["roll", "pitch", "heading"] {
+        assert_plot_png(&dir.path().join(format!("boresight_mc_1mm_{angle}.png")));
     }
     let r =
         run_boresight_calibration(&dir.path().join("calib_boresight.toml"), dir.path()).unwrap();
@@ -138,4 +161,26 @@ fn cut_missing_a_leg_is_a_clear_error() {
         e.contains("tripod_centres.csv") && e.contains("site 2") && e.contains("all three legs"),
         "{e}"
     );
+}
+
+/// Returns are read by the shared SPEC 6 reader: its header and line checks apply, and the
+/// latency calibration's own requirement (a `time_s` column) is a clear error.
+#[test]
+fn returns_file_errors_name_file_and_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("returns.csv");
+    std::fs::write(&p, "profile,beta_rad,range_m,intensity\n0,0.1,1.5,100\n").unwrap();
+    let e = kinescan::calib::latency::read_returns(&p, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("returns.csv") && e.contains("time_s"), "{e}");
+    std::fs::write(
+        &p,
+        "profile,beta_rad,range_m,intensity,time_s\n0,0.1,1.5,100,1.0\n0,0.2,,,1.1\n1,x,1.5,100,1.2\n",
+    )
+    .unwrap();
+    let e = kinescan::calib::latency::read_returns(&p, 0.0)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("returns.csv") && e.contains("line 4"), "{e}");
 }

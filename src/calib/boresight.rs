@@ -588,9 +588,14 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
     Ok(out)
 }
 
-/// `kinescan calibrate boresight`: reads the TOML config at `config_path` and the files it
-/// names, estimates the boresight and writes `boresight.json` (the [`BoresightReport`]) and
-/// `boresight_sites.csv` (per-site apex and leg residuals) atomically into `out_dir`.
+/// `kinescan calibrate boresight`: reads the TOML config at `config_path` (a
+/// [`BoresightConfig`]; unknown keys refused, errors name the key and the file) and the CSV files
+/// it names (paths relative to the config: ellipse centres in the scan plane, m; IMU attitudes,
+/// SPEC angles in deg), estimates the boresight ([`estimate_boresight`]) and writes
+/// `boresight.json` (the serialisable [`BoresightReport`]: SPEC boresight angles
+/// `R_s^b = Rz(bz) Ry(by) Rx(bx)` in deg, the matrix, the misalignment about body x, y, z on top
+/// of the nominal, covariances in deg^2) and `boresight_sites.csv` (per-site apex and leg
+/// residuals) atomically into `out_dir`.
 pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<BoresightReport> {
     let cfg: BoresightConfig = files::load_toml(config_path)?;
     let setup = cfg.setup(&config_path.display().to_string())?;

@@ -1,5 +1,10 @@
 //! Files of the calibration commands: TOML configs, the CSV tables a lab records, atomic output.
 //!
+//! Scanner returns are read by the shared SPEC 6 reader (`io::profiles_csv`) and outputs are
+//! written through `io::atomic`. The calibration-only tables below use the small [`CsvTable`]:
+//! the shared line reader and field parsers (`io::csv_text`) are private to `io`, and those
+//! tables are a few hundred lines read whole, with optional columns looked up by name.
+//!
 //! Formats (documented for users in `docs/calibration.md`):
 //! - scanner returns: SPEC 6 profile CSV `profile,beta_rad,range_m,intensity[,alpha_rad][,time_s]`;
 //!   the latency calibration needs `time_s` (GPS time of the return, s).
@@ -9,9 +14,9 @@
 //! - tripod sites: `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,
 //!   sigma_heading_deg` (IMU attitude averaged over the static scan).
 
+use crate::io::atomic::AtomicFile;
 use crate::{Error, Result};
 use serde::de::DeserializeOwned;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Reads and parses a TOML file. Errors name the file and the offending key (unknown keys are
@@ -50,17 +55,15 @@ pub fn resolve(config_path: &Path, file: &Path) -> PathBuf {
     }
 }
 
-/// Writes `bytes` to `path` atomically (temp file in the same directory, then rename).
+/// Writes `bytes` to `path` atomically (creating its directory; the shared
+/// [`AtomicFile`]: temp file in the same directory, synced, then renamed).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(dir, e))?;
-    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
-    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
-    Ok(())
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    }
+    let mut f = AtomicFile::create(path)?;
+    f.write_all(bytes)?;
+    f.commit()
 }
 
 /// Serialises `value` as pretty JSON into `path` atomically.

@@ -17,6 +17,8 @@
 use super::files::{self, CsvTable};
 use super::sphere::{fit_sphere_robust, SphereFit, SphereRadius};
 use crate::geo::rotations::{q_b_to_n, r_zyx};
+use crate::io::profiles_csv::ProfileCsvReader;
+use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
@@ -500,36 +502,35 @@ impl LatencyConfig {
     }
 }
 
-/// Reads scanner returns (SPEC 6 profile CSV); `time_s` is required. Missing returns (range 0
-/// or empty) are skipped. `alpha0_rad` is used where there is no `alpha_rad` column.
+/// Reads scanner returns (SPEC 6 profile CSV, through the shared
+/// [`ProfileCsvReader`]: exact header, per-line checks naming the line); `time_s` is required.
+/// Missing returns (range 0 or empty) are skipped. `alpha0_rad` is used where there is no
+/// `alpha_rad` column.
 pub fn read_returns(path: &Path, alpha0_rad: f64) -> Result<Vec<TimedReturn>> {
-    let t = CsvTable::read(path)?;
-    let (cp, cb, cr, ct) = (
-        t.column("profile")?,
-        t.column("beta_rad")?,
-        t.column("range_m")?,
-        t.column("time_s")?,
-    );
-    t.column("intensity")?;
-    let ca = t.optional_column("alpha_rad");
+    let reader = ProfileCsvReader::open(path)?;
+    let columns = reader.columns();
+    if !columns.time {
+        return Err(Error::bad_file(
+            path,
+            "no `time_s` column: the latency calibration needs the GPS time of each return",
+        ));
+    }
     let mut out = Vec::new();
-    for (line, f) in t.rows() {
-        let Some(range_m) = t.opt_f64(line, f, cr)?.filter(|&r| r != 0.0) else {
+    for r in reader {
+        let r = r?;
+        if r.range_m == 0.0 {
             continue;
-        };
-        if range_m < 0.0 {
-            return Err(t.bad(line, "negative range"));
         }
-        let alpha_rad = match ca {
-            Some(c) => t.opt_f64(line, f, c)?.unwrap_or(alpha0_rad),
-            None => alpha0_rad,
-        };
         out.push(TimedReturn {
-            profile: t.u64(line, f, cp)?,
-            time_s: t.f64(line, f, ct)?,
-            alpha_rad,
-            beta_rad: t.f64(line, f, cb)?,
-            range_m,
+            profile: r.profile.into(),
+            time_s: r.time_s,
+            alpha_rad: if columns.alpha {
+                r.alpha_rad
+            } else {
+                alpha0_rad
+            },
+            beta_rad: r.beta_rad,
+            range_m: r.range_m,
         });
     }
     Ok(out)
@@ -601,9 +602,13 @@ pub fn read_attitude(path: &Path) -> Result<Vec<AttitudeSample>> {
     Ok(out)
 }
 
-/// `kinescan calibrate latency`: reads the TOML config at `config_path` and the files it names,
-/// estimates the latency and writes `latency.json` (the [`LatencyReport`]) and
-/// `latency_by_speed.csv` (the Table-2-like table) atomically into `out_dir`.
+/// `kinescan calibrate latency`: reads the TOML config at `config_path` (a [`LatencyConfig`];
+/// unknown keys refused, errors name the key and the file) and the files it names (paths
+/// relative to the config: SPEC 6 returns with `time_s`, the table's pass log, the IMU attitude
+/// stream in SPEC angles), estimates the total latency `tau` (s; SPEC sign: the attitude of
+/// `t + tau` belongs to a return at `t`) and writes `latency.json` (the [`LatencyReport`]),
+/// `latency_by_speed.csv` (the Table-2-like table) and `latency_by_speed.png` ([`latency_plot`])
+/// atomically into `out_dir`.
 pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<LatencyReport> {
     let cfg: LatencyConfig = files::load_toml(config_path)?;
     let setup = cfg.setup(&config_path.display().to_string())?;
@@ -621,7 +626,41 @@ pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<Lat
         &out_dir.join("latency_by_speed.csv"),
         speed_table_csv(&report).as_bytes(),
     )?;
+    latency_plot(&report).save_png(out_dir.join("latency_by_speed.png"))?;
     Ok(report)
+}
+
+/// Latency (ms) against table speed |omega| (deg/s): the per-speed estimates and their +-1 sigma
+/// limits as points, and the combined estimate as a line (written as `latency_by_speed.png`).
+pub fn latency_plot(report: &LatencyReport) -> Plot {
+    let at = |k: f64| {
+        report.speeds.iter().map(move |r| {
+            let ms = (r.latency_s + k * r.sigma_latency_s) * 1e3;
+            (r.rate_deg_s.abs(), ms)
+        })
+    };
+    let estimates: Vec<(f64, f64)> = at(0.0).collect();
+    let limits: Vec<(f64, f64)> = at(-1.0).chain(at(1.0)).collect();
+    let lo = estimates.iter().map(|p| p.0).fold(f64::INFINITY, f64::min);
+    let hi = estimates
+        .iter()
+        .map(|p| p.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let combined_ms = report.latency_s * 1e3;
+    Plot::new(
+        "IMU-scanner latency by table speed",
+        "table speed (deg/s)",
+        "latency (ms)",
+    )
+    .scatter("per-speed estimate", &estimates)
+    .scatter("estimate +- 1 sigma", &limits)
+    .line(
+        &format!(
+            "combined {combined_ms:.3} +- {:.3} ms",
+            report.sigma_latency_s * 1e3
+        ),
+        &[(lo, combined_ms), (hi, combined_ms)],
+    )
 }
 
 /// The per-speed table (paper Table 2 layout, one row per speed, plus the combined row).

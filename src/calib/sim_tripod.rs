@@ -10,11 +10,13 @@
 //! and a scanner whose scan plane is horizontal in the body (`R_nom`: mirror axis `x_s` along
 //! body down, `beta = 0` forward; SPEC angles (0, -90, 180) deg), which the paper's sites need:
 //! a scan plane must be within ~30 deg of horizontal to cut all three legs of a standing
-//! tripod at any heading.
+//! tripod at any heading. The paper does not say how its sites' angles compose:
+//! `site_rotation` selects SPEC's order (default) or the order of the paper's printed matrix.
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
 use super::files::{self, write_atomic};
-use crate::geo::rotations::{r_b_to_n, r_zyx};
+use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
+use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use rand::SeedableRng;
@@ -42,8 +44,10 @@ pub struct TripodScenario {
     pub cut_depth_m: f64,
     /// Optical centre to that crossing point (m).
     pub scanner_distance_m: f64,
-    /// IMU roll, pitch, heading per site (deg).
+    /// IMU roll, pitch, heading per site (deg), composed as `site_rotation` says.
     pub sites_deg: Vec<[f64; 3]>,
+    /// How `sites_deg` compose into the body-to-NED rotation (default: SPEC's).
+    pub site_rotation: SiteRotation,
     /// Nominal boresight (deg, SPEC).
     pub nominal_boresight_deg: [f64; 3],
     /// True misalignment about body x, y, z on top of the nominal (deg).
@@ -67,6 +71,7 @@ impl Default for TripodScenario {
             cut_depth_m: 0.5,
             scanner_distance_m: 1.0,
             sites_deg: vec![[-20.0, 0.0, 30.0], [0.0, 20.0, 120.0], [20.0, -20.0, 240.0]],
+            site_rotation: SiteRotation::Zyx,
             nominal_boresight_deg: [0.0, -90.0, 180.0],
             misalignment_deg: [0.5, -0.3, 1.0],
             sigma_centre_m: 0.001,
@@ -76,7 +81,34 @@ impl Default for TripodScenario {
     }
 }
 
+/// Composition of a site's (roll, pitch, heading) into `R_b^n`. Paper 002 does not say how its
+/// simulated sites compose; the two readings give very different heading observability
+/// (docs/calibration.md, "Why the paper's error levels are not reached").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SiteRotation {
+    /// SPEC: `R_b^n = Rz(heading) Ry(pitch) Rx(roll)`.
+    Zyx,
+    /// The order of paper 002's printed matrix: `R_b^n = Rx(roll) Ry(pitch) Rz(heading)`.
+    Xyz,
+}
+
 impl TripodScenario {
+    /// Body-to-NED rotation of site `k` (index into `sites_deg`).
+    pub fn site_r_b_to_n(&self, k: usize) -> Matrix3<f64> {
+        let [r, p, h] = self.sites_deg[k].map(f64::to_radians);
+        match self.site_rotation {
+            SiteRotation::Zyx => r_b_to_n(r, p, h),
+            SiteRotation::Xyz => rot_x(r) * rot_y(p) * rot_z(h),
+        }
+    }
+
+    /// SPEC attitude angles (roll, pitch, heading; rad) of site `k`: what its IMU reports.
+    pub fn site_attitude_rad(&self, k: usize) -> [f64; 3] {
+        let (r, p, h) = zyx_angles(&self.site_r_b_to_n(k));
+        [r, p, h]
+    }
+
     fn axis(&self) -> Vector3<f64> {
         Vector3::from(self.tripod_axis_n).normalize()
     }
@@ -128,8 +160,7 @@ impl TripodScenario {
 
     /// Noise-free ellipse centres `(y_s, z_s)` of the three legs at site `k` (m).
     fn true_centres(&self, k: usize) -> Result<[Vector2<f64>; 3]> {
-        let [r, p, h] = self.sites_deg[k].map(f64::to_radians);
-        let r_s_n = r_b_to_n(r, p, h) * self.true_r_s_to_b();
+        let r_s_n = self.site_r_b_to_n(k) * self.true_r_s_to_b();
         let m = r_s_n * Vector3::x();
         let q = self.axis() * self.cut_depth_m;
         let origin = q - r_s_n * Vector3::z() * self.scanner_distance_m;
@@ -161,8 +192,7 @@ pub fn simulate_sites(sc: &TripodScenario, rng: &mut ChaCha8Rng) -> Result<Vec<T
         let centres = sc
             .true_centres(k)?
             .map(|c| c + Vector2::new(nc.sample(rng), nc.sample(rng)));
-        let att = sc.sites_deg[k].map(f64::to_radians);
-        let mut attitude_rad = att;
+        let mut attitude_rad = sc.site_attitude_rad(k);
         for (a, s) in attitude_rad.iter_mut().zip(sig_att) {
             *a += s * Normal::new(0.0, 1.0)
                 .map_err(|e| Error::Invalid(e.to_string()))?
@@ -267,11 +297,17 @@ pub fn histogram_bins(
         .collect()
 }
 
+/// Angle names of the misalignment components, in order.
+const ANGLES: [&str; 3] = ["roll", "pitch", "heading"];
+
 /// Writes a Monte Carlo's outputs into `out_dir` atomically, tagged by the noise in mm:
-/// `boresight_mc_<mm>mm.json` (summary), `..._errors.csv` (per trial) and `..._histograms.csv`
-/// (40 bins per angle, from [`histogram_bins`]).
+/// `boresight_mc_<mm>mm.json` (summary), `..._errors.csv` (per trial), `..._histograms.csv`
+/// (40 bins per angle, from [`histogram_bins`]) and one PNG histogram per angle,
+/// `..._<roll|pitch|heading>.png` (paper 002, figs 4-5: 40 bins over the errors' range, x axis
+/// symmetric about 0).
 pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Result<()> {
-    let tag = format!("boresight_mc_{}mm", mc.sigma_centre_m * 1e3);
+    let mm = mc.sigma_centre_m * 1e3;
+    let tag = format!("boresight_mc_{mm}mm");
     files::write_json(&out_dir.join(format!("{tag}.json")), mc)?;
     let mut s = String::from("trial,roll_error_deg,pitch_error_deg,heading_error_deg\n");
     for (i, e) in mc.errors_deg.iter().enumerate() {
@@ -279,13 +315,29 @@ pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Resu
     }
     write_atomic(&out_dir.join(format!("{tag}_errors.csv")), s.as_bytes())?;
     let mut h = String::from("angle,bin_low_deg,bin_high_deg,count\n");
-    for (k, name) in ["roll", "pitch", "heading"].iter().enumerate() {
-        for (lo, hi, c) in histogram_bins(&mc.errors_deg, k, 40) {
+    for (k, name) in ANGLES.iter().enumerate() {
+        let bins = histogram_bins(&mc.errors_deg, k, 40);
+        for (lo, hi, c) in &bins {
             let _ = writeln!(h, "{name},{lo:.8},{hi:.8},{c}");
         }
+        let values: Vec<f64> = mc.errors_deg.iter().map(|e| e[k]).collect();
+        let lim = bins.last().map_or(1.0, |b| b.1);
+        Plot::new(
+            &format!(
+                "Boresight {name} error, {mm} mm ellipse-centre noise, {} trials",
+                mc.trials
+            ),
+            &format!("{name} error (deg)"),
+            "trials",
+        )
+        .x_range(-lim, lim)
+        .histogram(
+            &format!("sigma {:.4} deg", mc.empirical_sigma_deg[k]),
+            &values,
+            40,
+        )
+        .save_png(out_dir.join(format!("{tag}_{name}.png")))?;
     }
-    // PNG: the lead wires `kinescan::plot` here after merging (one PNG per noise level, three
-    // panels from `histogram_bins`, file `{tag}_histograms.png`).
     write_atomic(&out_dir.join(format!("{tag}_histograms.csv")), h.as_bytes())
 }
 
@@ -324,7 +376,7 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
         sc.nominal_boresight_deg
     );
     write_atomic(&out_dir.join("calib_boresight.toml"), cfg.as_bytes())?;
-    let truth = crate::geo::rotations::zyx_angles(&sc.true_r_s_to_b());
+    let truth = zyx_angles(&sc.true_r_s_to_b());
     files::write_json(
         &out_dir.join("truth.json"),
         &serde_json::json!({
@@ -335,8 +387,15 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
     )
 }
 
-/// `kinescan simulate` for the tripod: reads a [`TripodScenario`] TOML, writes one realisation
-/// with [`write_tripod_run`] and, if `monte_carlo_trials > 0`, the Monte Carlo outputs.
+/// `kinescan simulate` for the tripod (paper 002, section 5): reads a [`TripodScenario`] TOML at
+/// `config_path` (unknown keys refused) and writes atomically into `out_dir` one realisation as
+/// a lab records it (`tripod_centres.csv`: ellipse centres in the scan plane, m;
+/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg), the calibration config
+/// `calib_boresight.toml` and `truth.json` ([`write_tripod_run`]). With
+/// `monte_carlo_trials > 0` it also runs the Monte Carlo and writes its outputs
+/// ([`write_monte_carlo_outputs`]: JSON summary, per-trial errors, histogram CSV and one PNG per
+/// angle) and returns the serialisable summary (errors in deg, misalignment about body x, y, z);
+/// otherwise `None`.
 pub fn run_tripod_simulation(
     config_path: &Path,
     out_dir: &Path,
