@@ -104,7 +104,7 @@ fn eval(input: &Path, output: &Path) {
         .collect();
     let (geom, _) = case();
     let model = enu_error_model(&geom);
-    write_f64(output, x.chunks_exact(N_INPUTS).flat_map(model));
+    write_f64(output, x.chunks_exact(N_INPUTS).flat_map(&model));
 }
 
 fn main() {

@@ -12,7 +12,7 @@ use kinescan::pipeline::executor::{run, RunOptions};
 use kinescan::pipeline::report::RejectReason;
 use kinescan::timing::{Mirror, MirrorDirection, ScannerClock};
 use kinescan::trajectory::{PoseCursor, Trajectory, TrajectoryOptions};
-use kinescan::uncertainty::model::r_e_to_map_axes;
+use kinescan::uncertainty::model::{r_e_to_map_axes, LocalLevel};
 use kinescan::uncertainty::{propagate, PointGeometry};
 use nalgebra::Vector3;
 use std::path::Path;
@@ -264,8 +264,10 @@ fn written_sigmas_equal_the_library_propagation() {
         let geom = PointGeometry::from_pose(&pose, &sensor, 0.0, r.beta_rad, r.range_m);
         let x_e = geom.point_e(&[0.0; 18]);
         let (a, b) = clock().partials(r.profile, r.beta_rad);
+        let local = LocalLevel::at(geom.lat_rad, geom.lon_rad, geom.h_m);
         let cov = propagate(
             &geom,
+            &local,
             &inputs,
             &sig.at(t).unwrap(),
             [a, b],
@@ -274,7 +276,7 @@ fn written_sigmas_equal_the_library_propagation() {
         let s = cov.sigma_xyz_m();
         let want = [s.x, s.y, s.z, cov.thu95_m(), cov.tvu95_m()];
         let shares = cov.shares();
-        // The pipeline reuses the map axes within 5 m (MapAxesCache): < 1.7e-6 rad here, times
+        // The pipeline reuses the frames within 5 m (FrameCache): < 1.7e-6 rad here, times
         // sigma ratios below 10, plus f32 rounding (6e-8).
         for k in 0..5 {
             let rel = (v[1 + k] as f64 / want[k] - 1.0).abs();
@@ -346,9 +348,19 @@ fn bad_uncertainty_tables_are_refused() {
     }
 }
 
-/// Run time with and without uncertainty on 1.2 M returns, best of 5 interleaved runs each
-/// (the machine is shared; the minimum is the least disturbed). A measurement, not run by
-/// default: `cargo test --test uncertainty_pipeline -- --ignored --nocapture`.
+/// CPU seconds (user + system, all threads) of this process so far, from /proc/self/stat
+/// (Linux; 100 ticks per second).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap();
+    let after_name = &stat[stat.rfind(')').unwrap() + 2..];
+    let f: Vec<&str> = after_name.split_whitespace().collect();
+    // Fields 14 and 15 of stat (utime, stime) are 11 and 12 after the name and state.
+    (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
+}
+
+/// Run time with and without uncertainty on 1.2 M returns: CPU time (insensitive to other
+/// users of a shared machine) and wall time, best of 5 interleaved runs each. A measurement,
+/// not run by default: `cargo test --test uncertainty_pipeline -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn benchmark_uncertainty_overhead() {
@@ -361,23 +373,29 @@ fn benchmark_uncertainty_overhead() {
         ("all fields", FULL),
         ("sigmas only", &sigmas_only),
     ];
-    let mut best = [f64::INFINITY; 3];
+    let mut wall = [f64::INFINITY; 3];
+    let mut cpu = [f64::INFINITY; 3];
     for _ in 0..5 {
         for (k, (_, u)) in cases.iter().enumerate() {
             let path = write_pipeline(dir.path(), "traj.smrmsg", u);
             let loaded = config::load(&path, &[]).unwrap();
-            let start = std::time::Instant::now();
+            let (start, cpu0) = (std::time::Instant::now(), cpu_seconds());
             run(&loaded, &quiet()).unwrap();
-            best[k] = best[k].min(start.elapsed().as_secs_f64());
+            wall[k] = wall[k].min(start.elapsed().as_secs_f64());
+            cpu[k] = cpu[k].min(cpu_seconds() - cpu0);
         }
     }
     for (k, (name, _)) in cases.iter().enumerate() {
         println!(
-            "uncertainty {name}: {} returns in {:.2} s, {:.0} returns/s, overhead {:.0}%",
+            "uncertainty {name}: {} returns, CPU {:.2} s ({:.0} returns per CPU s, overhead \
+             {:.0}%), wall {:.2} s ({:.0} returns/s, overhead {:.0}%)",
             raw.len(),
-            best[k],
-            raw.len() as f64 / best[k],
-            (best[k] / best[0] - 1.0) * 100.0
+            cpu[k],
+            raw.len() as f64 / cpu[k],
+            (cpu[k] / cpu[0] - 1.0) * 100.0,
+            wall[k],
+            raw.len() as f64 / wall[k],
+            (wall[k] / wall[0] - 1.0) * 100.0
         );
     }
 }

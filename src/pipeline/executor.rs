@@ -14,7 +14,7 @@ use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::{Mirror, ScannerClock};
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
-use crate::uncertainty::model::MapAxesCache;
+use crate::uncertainty::model::FrameCache;
 use crate::uncertainty::{propagate, PointCovariance, PointGeometry, UncertaintyInputs};
 use crate::{Error, Result};
 use nalgebra::Vector3;
@@ -147,7 +147,7 @@ impl Georeferencer<'_> {
         r: &RawReturn,
         cursor: &mut PoseCursor,
         local: &mut Option<LocalProjection>,
-        sigmas: Option<&mut (SigmaCursor, MapAxesCache)>,
+        sigmas: Option<&mut (SigmaCursor, FrameCache)>,
     ) -> Result<(LasPoint, f64), RejectReason> {
         let alpha = if self.columns.alpha {
             r.alpha_rad
@@ -167,7 +167,7 @@ impl Georeferencer<'_> {
         let t = self.time_of(r);
         let pose = cursor.at(t)?;
         let nav_sigma = match sigmas {
-            Some((cursor, axes)) => Some((cursor.at(t)?, axes)),
+            Some((cursor, frames)) => Some((cursor.at(t)?, frames)),
             None => None,
         };
         let x_e = georeference(
@@ -191,10 +191,12 @@ impl Georeferencer<'_> {
         if let Some(k) = self.slots.range {
             p.extra[k] = r.range_m;
         }
-        if let (Some(u), Some((nav_sigma, axes))) = (&self.uncertainty, nav_sigma) {
+        if let (Some(u), Some((nav_sigma, frames))) = (&self.uncertainty, nav_sigma) {
             let geom = PointGeometry::from_pose(&pose, &self.sensor, alpha, r.beta_rad, r.range_m);
-            let to_map = axes.at(&x_e);
-            let cov = propagate(&geom, &u.inputs, &nav_sigma, self.clock_partials(r), to_map);
+            let level = *frames.local_level(&geom);
+            let to_map = frames.map_axes(&x_e);
+            let partials = self.clock_partials(r);
+            let cov = propagate(&geom, &level, &u.inputs, &nav_sigma, partials, to_map);
             u.fill(&cov, &mut p.extra);
         }
         Ok((p, t))
@@ -241,7 +243,7 @@ impl Georeferencer<'_> {
             .uncertainty
             .as_ref()
             .and_then(|_| self.traj.sigma_cursor())
-            .map(|c| (c, MapAxesCache::new(self.frame)));
+            .map(|c| (c, FrameCache::new(self.frame)));
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {

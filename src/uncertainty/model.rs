@@ -265,8 +265,13 @@ impl PointGeometry {
 
     /// Analytic Jacobian `d x_e / d e` at `e = 0` (ECEF axes; columns in model order).
     pub fn jacobian_e(&self) -> Jacobian {
-        let (lat, h) = (self.lat_rad, self.h_m);
-        let r_n_e = r_n_to_e(lat, self.lon_rad);
+        self.jacobian_e_in(&LocalLevel::at(self.lat_rad, self.lon_rad, self.h_m))
+    }
+
+    /// [`Self::jacobian_e`] with the local-level quantities given (exact when `local` is
+    /// [`LocalLevel::at`] the IMU; see [`FrameCache`] for a nearby one).
+    pub fn jacobian_e_in(&self, local: &LocalLevel) -> Jacobian {
+        let r_n_e = local.r_n_to_e;
         let r_b_n = self.r_b_to_n;
         let r_b_e = r_n_e * r_b_n;
         let r_s_b = self.r_s_to_b;
@@ -277,27 +282,8 @@ impl PointGeometry {
         let a_n = r_b_n * a_b;
         let mut j = Jacobian::zeros();
 
-        // Position: R_n^e, plus the turn of n when lat/lon follow the displaced IMU:
-        // R_n^e(lat + dlat, lon + dlon) = R_n^e (I + [dtheta]x),
-        // dtheta = (dlon cos lat, -dlat, -dlon sin lat).
-        // Meridian radius from the prime-vertical one: M = (1 - e^2) N^3 / a^2.
-        let n_m = prime_vertical_radius_m(lat);
-        let (n_h, m_h) = (
-            n_m + h,
-            (1.0 - WGS84_E2) * n_m.powi(3) / (WGS84_A * WGS84_A) + h,
-        );
-        let dtheta = Matrix3::new(
-            0.0,
-            1.0 / n_h,
-            0.0,
-            -1.0 / m_h,
-            0.0,
-            0.0,
-            0.0,
-            r_n_e[(2, 2)] / (r_n_e[(2, 0)] * n_h), // -tan(lat) / (N + h)
-            0.0,
-        );
-        let j_pos = r_n_e * (Matrix3::identity() - skew(&a_n) * dtheta);
+        // Position: R_n^e, plus the turn of n when lat/lon follow the displaced IMU.
+        let j_pos = r_n_e * (Matrix3::identity() - skew(&a_n) * local.dtheta_per_m);
         j.fixed_columns_mut::<3>(0).copy_from(&j_pos);
 
         // Attitude: dR/dk = R [u_k]x with u_r = x, u_p = Rx(r)^T y, u_h = R^T z.
@@ -328,6 +314,45 @@ impl PointGeometry {
         j.set_column(16, &(j_pos * self.v_n_mps + d_att));
         j.set_column(17, &d_att);
         j
+    }
+}
+
+/// The local-level frame at the IMU: `R_n^e` and the turn of `n` per metre of NED
+/// displacement.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LocalLevel {
+    /// `R_n^e` at the IMU.
+    pub r_n_to_e: Matrix3<f64>,
+    /// `dtheta / d d_n` (rad/m): `R_n^e(lat + dlat, lon + dlon) = R_n^e (I + [dtheta]x)` with
+    /// `dtheta = (dlon cos lat, -dlat, -dlon sin lat)`, `dlat = d_N / (M + h)`,
+    /// `dlon = d_E / ((N + h) cos lat)`.
+    pub dtheta_per_m: Matrix3<f64>,
+}
+
+impl LocalLevel {
+    /// At geodetic latitude, longitude (rad) and height (m).
+    pub fn at(lat_rad: f64, lon_rad: f64, h_m: f64) -> Self {
+        let r_n_to_e = r_n_to_e(lat_rad, lon_rad);
+        // Meridian radius from the prime-vertical one: M = (1 - e^2) N^3 / a^2.
+        let n_m = prime_vertical_radius_m(lat_rad);
+        let n_h = n_m + h_m;
+        let m_h = (1.0 - WGS84_E2) * n_m.powi(3) / (WGS84_A * WGS84_A) + h_m;
+        let minus_tan_lat = r_n_to_e[(2, 2)] / r_n_to_e[(2, 0)];
+        let dtheta_per_m = Matrix3::new(
+            0.0,
+            1.0 / n_h,
+            0.0,
+            -1.0 / m_h,
+            0.0,
+            0.0,
+            0.0,
+            minus_tan_lat / n_h,
+            0.0,
+        );
+        LocalLevel {
+            r_n_to_e,
+            dtheta_per_m,
+        }
     }
 }
 
@@ -363,39 +388,59 @@ pub fn r_e_to_map_axes(frame: &MapFrame, x_e: &Vector3<f64>) -> Matrix3<f64> {
     frame.r_enu_to_map_axes(x_e) * r_enu_to_e(g.lat_rad, g.lon_rad).transpose()
 }
 
-/// [`r_e_to_map_axes`] re-evaluated only when the point has moved more than
-/// [`MapAxesCache::REUSE_RADIUS_M`] from where it was last evaluated (consecutive returns of a
-/// profile are centimetres to decimetres apart). The matrix turns by about
-/// `(1 + tan(lat)) / 6.4e6` rad per metre (the local vertical plus the grid convergence:
-/// 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg) and changes scale by < 1e-8 per metre, so
-/// within 5 m a sigma changes by < 1.7e-6 (48 deg; 1e-5 at 85 deg) times the ratio of the
-/// other axes' sigma to its own: far below the accuracy of any input sigma.
+/// Per-thread cache of the two frame quantities of a return that vary slowly in space:
+/// [`r_e_to_map_axes`] at the point and [`LocalLevel`] at the IMU, each re-evaluated only when
+/// its position has moved more than [`FrameCache::REUSE_RADIUS_M`] (consecutive returns are
+/// centimetres to decimetres apart, the IMU moves millimetres between them).
+///
+/// Both matrices turn by about `(1 + tan(lat)) / 6.4e6` rad per metre (local vertical plus grid
+/// convergence: 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg); the UTM scale changes by
+/// < 1e-8 per metre. Within 5 m a sigma therefore changes by < 1.7e-6 (48 deg; 1e-5 at
+/// 85 deg) times the ratio of the other axes' sigma to its own: far below the accuracy of any
+/// input sigma.
 #[derive(Debug, Clone)]
-pub struct MapAxesCache {
+pub struct FrameCache {
     frame: MapFrame,
-    at_e: Vector3<f64>,
+    map_at_e: Vector3<f64>,
     r_e_to_map: Matrix3<f64>,
+    local_at_e: Vector3<f64>,
+    local: LocalLevel,
 }
 
-impl MapAxesCache {
+impl FrameCache {
     /// Reuse radius (m).
     pub const REUSE_RADIUS_M: f64 = 5.0;
 
-    /// An empty cache for `frame`.
+    /// An empty cache for the map frame `frame`.
     pub fn new(frame: MapFrame) -> Self {
-        MapAxesCache {
+        FrameCache {
             frame,
-            at_e: Vector3::repeat(f64::INFINITY),
+            map_at_e: Vector3::repeat(f64::INFINITY),
             r_e_to_map: Matrix3::identity(),
+            local_at_e: Vector3::repeat(f64::INFINITY),
+            local: LocalLevel::at(0.0, 0.0, 0.0),
         }
     }
 
+    fn stale(at: &Vector3<f64>, x_e: &Vector3<f64>) -> bool {
+        (x_e - at).norm_squared() > Self::REUSE_RADIUS_M * Self::REUSE_RADIUS_M
+    }
+
     /// `d x_map / d x_e` near the ECEF point `x_e`.
-    pub fn at(&mut self, x_e: &Vector3<f64>) -> &Matrix3<f64> {
-        if (x_e - self.at_e).norm_squared() > Self::REUSE_RADIUS_M * Self::REUSE_RADIUS_M {
+    pub fn map_axes(&mut self, x_e: &Vector3<f64>) -> &Matrix3<f64> {
+        if Self::stale(&self.map_at_e, x_e) {
             self.r_e_to_map = r_e_to_map_axes(&self.frame, x_e);
-            self.at_e = *x_e;
+            self.map_at_e = *x_e;
         }
         &self.r_e_to_map
+    }
+
+    /// [`LocalLevel`] near the IMU of `geom`.
+    pub fn local_level(&mut self, geom: &PointGeometry) -> &LocalLevel {
+        if Self::stale(&self.local_at_e, &geom.r_e_m) {
+            self.local = LocalLevel::at(geom.lat_rad, geom.lon_rad, geom.h_m);
+            self.local_at_e = geom.r_e_m;
+        }
+        &self.local
     }
 }

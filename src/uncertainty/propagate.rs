@@ -1,7 +1,7 @@
 //! First-order propagation: `Sigma = J Q J^T` per return (the paper's equation 7 with `Q`, not
 //! `Q^-1`), along the map axes, with per-group variance shares.
 
-use super::model::{Input, Jacobian, PointGeometry, N_GROUPS, N_INPUTS};
+use super::model::{Group, Input, Jacobian, LocalLevel, PointGeometry, N_GROUPS, N_INPUTS};
 use crate::trajectory::NavSigma;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
@@ -98,15 +98,18 @@ pub fn covariance_of(j: &Jacobian, sigmas: &[f64; N_INPUTS]) -> PointCovariance 
     // Scaled columns c_k = sigma_k J_k: Sigma = sum c_k c_k^T, group variance = sum |c_k|^2.
     let mut upper = [0.0; 6];
     let mut groups = [0.0; N_GROUPS];
-    for (k, s) in sigmas.iter().enumerate() {
-        let (x, y, z) = (j[(0, k)] * s, j[(1, k)] * s, j[(2, k)] * s);
-        upper[0] += x * x;
-        upper[1] += x * y;
-        upper[2] += x * z;
-        upper[3] += y * y;
-        upper[4] += y * z;
-        upper[5] += z * z;
-        groups[Input::ALL[k].group() as usize] += x * x + y * y + z * z;
+    for (g, group) in Group::ALL.iter().enumerate() {
+        for k in group.inputs() {
+            let s = sigmas[k];
+            let (x, y, z) = (j[(0, k)] * s, j[(1, k)] * s, j[(2, k)] * s);
+            upper[0] += x * x;
+            upper[1] += x * y;
+            upper[2] += x * z;
+            upper[3] += y * y;
+            upper[4] += y * z;
+            upper[5] += z * z;
+            groups[g] += x * x + y * y + z * z;
+        }
     }
     let [xx, xy, xz, yy, yz, zz] = upper;
     PointCovariance {
@@ -117,18 +120,20 @@ pub fn covariance_of(j: &Jacobian, sigmas: &[f64; N_INPUTS]) -> PointCovariance 
 
 /// Propagated covariance of one return along the map axes.
 ///
-/// `geom`: the return's nominal state; `inputs`: configured sigmas; `nav`: SMRMSG sigmas at the
-/// return's time; `dt_dclock`: partials of the return's time with respect to (t0, T)
+/// `geom`: the return's nominal state; `local`: the local-level frame at its IMU
+/// ([`LocalLevel::at`], or from a [`super::model::FrameCache`]); `inputs`: configured sigmas;
+/// `nav`: SMRMSG sigmas at the return's time; `dt_dclock`: partials of the return's time with respect to (t0, T)
 /// ([`crate::timing::ScannerClock::partials`], or `(0, f(beta))` for PPS profile tags, `(0, 0)`
 /// for per-return tags); `r_e_to_map`: `d x_map / d x_e` at the point
-/// ([`super::model::r_e_to_map_axes`]).
+/// ([`super::model::r_e_to_map_axes`] or a [`super::model::FrameCache`]).
 pub fn propagate(
     geom: &PointGeometry,
+    local: &LocalLevel,
     inputs: &UncertaintyInputs,
     nav: &NavSigma,
     dt_dclock: [f64; 2],
     r_e_to_map: &Matrix3<f64>,
 ) -> PointCovariance {
-    let j = r_e_to_map * geom.jacobian_e();
+    let j = r_e_to_map * geom.jacobian_e_in(local);
     covariance_of(&j, &inputs.sigmas(nav, dt_dclock))
 }
