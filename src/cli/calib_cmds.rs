@@ -57,10 +57,9 @@ pub fn calibrate(a: &CalibrateArgs, quiet: bool) -> Result<()> {
         CalibrateCommand::Boresight(j) => print(serde_json::to_value(
             boresight::run_boresight_calibration(&j.config, &j.out)?,
         )?),
-        CalibrateCommand::SimulateTable(j) => {
-            let n = sim_table::run_table_simulation(&j.config, &j.out)?;
-            print(serde_json::json!({ "returns": n, "out": j.out }))
-        }
+        CalibrateCommand::SimulateTable(j) => print(serde_json::to_value(
+            sim_table::run_table_simulation(&j.config, &j.out)?,
+        )?),
         CalibrateCommand::SimulateTripod(j) => {
             let mc = sim_tripod::run_tripod_simulation(&j.config, &j.out)?;
             print(serde_json::json!({ "monte_carlo": mc, "out": j.out }))

@@ -3,6 +3,7 @@
 
 mod calib_cmds;
 mod pipeline_cmds;
+mod sensitivity_cmd;
 mod sim_cmds;
 
 use clap::{Parser, Subcommand};
@@ -28,6 +29,7 @@ enum Command {
     Calibrate(calib_cmds::CalibrateArgs),
     Simulate(sim_cmds::SimulateArgs),
     Demo(sim_cmds::DemoArgs),
+    Sensitivity(sensitivity_cmd::SensitivityArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
@@ -41,6 +43,7 @@ pub fn run() -> ExitCode {
         Command::Calibrate(a) => calib_cmds::calibrate(a, cli.quiet),
         Command::Simulate(a) => sim_cmds::simulate(a, cli.quiet),
         Command::Demo(a) => sim_cmds::demo(a, cli.quiet),
+        Command::Sensitivity(a) => sensitivity_cmd::sensitivity(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
