@@ -475,3 +475,107 @@ fn hardware_time_tags_per_return_and_per_profile() {
         "{err}"
     );
 }
+
+#[test]
+fn ecef_and_local_enu_frames_come_back_too() {
+    let f = fixture(2_000);
+    let d = f.dir.path();
+    let origin = kinescan::geo::ellipsoid::Geodetic {
+        lat_rad: LAT0_DEG.to_radians(),
+        lon_rad: LON0_DEG.to_radians(),
+        h_m: 500.0,
+    };
+    let frames = [
+        (
+            "{ kind = \"ecef\" }".to_string(),
+            MapFrame::Ecef,
+            Some(4978),
+        ),
+        (
+            format!(
+                "{{ kind = \"enu\", lat_deg = {LAT0_DEG}, lon_deg = {LON0_DEG}, h_m = 500.0 }}"
+            ),
+            MapFrame::local_enu(origin).unwrap(),
+            None,
+        ),
+    ];
+    for (k, (value, frame, epsg)) in frames.into_iter().enumerate() {
+        let set = [
+            format!("output.frame={value}"),
+            format!("output.las=\"out/frame{k}.las\""),
+        ];
+        let report = run(
+            &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+            &quiet(2),
+        )
+        .unwrap();
+        assert_eq!(report.epsg, epsg);
+        let pts = read_las(&d.join(format!("out/frame{k}.las")));
+        let worst = pts
+            .iter()
+            .zip(&f.truth_e)
+            .map(|(p, x)| (Vector3::new(p.x, p.y, p.z) - frame.ecef_to_map(x)).norm())
+            .fold(0.0, f64::max);
+        // Same bound as the UTM round trip (quantisation at 1e-5 m: 8.7 um).
+        assert!(worst <= 1e-4, "{value}: worst {worst} m");
+    }
+}
+
+#[test]
+fn trajectory_gaps_and_counter_wraps() {
+    let f = fixture(3_000);
+    let d = f.dir.path();
+    // Remove 0.5 s of SBET records: returns in the hole are rejected as `trajectory_gap`.
+    let sbet = kinescan::io::sbet::SbetFile::open(&d.join("traj.sbet")).unwrap();
+    let mut w = kinescan::io::sbet::SbetWriter::create(&d.join("gappy.sbet")).unwrap();
+    let (hole_a, hole_b) = (T_START_S + 5.0, T_START_S + 5.5);
+    for i in 0..sbet.len() {
+        let r = sbet.record(i);
+        if r.time_s <= hole_a || r.time_s >= hole_b {
+            w.push(&r).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let set = ["inputs.sbet=\"gappy.sbet\"".to_string()];
+    let report = run(
+        &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+        &quiet(2),
+    )
+    .unwrap();
+    let gap = report
+        .totals
+        .rejected
+        .get(&RejectReason::TrajectoryGap)
+        .copied()
+        .unwrap_or(0);
+    // About 0.5 s / 19.6 s of the uniformly timed returns; the exact count depends on the clock.
+    assert!(
+        (50..=120).contains(&gap),
+        "{gap} returns rejected in the gap"
+    );
+    assert_eq!(
+        report.totals.read,
+        report.totals.written + report.totals.rejected_total()
+    );
+
+    // A profile counter that goes backwards stops the run, naming file and record.
+    let src = kinescan::io::profiles::ProfileFile::open(&d.join("pass1.ksprof")).unwrap();
+    let mut w = ProfileWriter::create(&d.join("wrap.ksprof"), src.columns()).unwrap();
+    for i in 0..src.len() {
+        let r = src.get(i);
+        let profile = if i >= 1500 { r.profile / 2 } else { r.profile };
+        w.push(&RawReturn { profile, ..r }).unwrap();
+    }
+    w.finish().unwrap();
+    let set = ["inputs.profiles=[\"wrap.ksprof\"]".to_string()];
+    let err = run(
+        &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+        &quiet(2),
+    )
+    .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        msg.contains("wrap.ksprof") && msg.contains("record 1500") && msg.contains("decreases"),
+        "{msg}"
+    );
+}
