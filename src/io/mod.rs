@@ -11,3 +11,4 @@ pub mod profiles;
 pub mod profiles_csv;
 pub mod sbet;
 pub mod smrmsg;
+pub mod timed;

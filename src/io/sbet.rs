@@ -1,9 +1,6 @@
 //! Applanix SBET trajectory files (SPEC 6): 17 little-endian f64 per 136-byte record, no header.
 
-use super::atomic::AtomicFile;
-use super::mapped::{f64_le, MappedRecords};
-use crate::{Error, Result};
-use std::path::Path;
+use super::timed::{TimedFile, TimedRecord, TimedWriter};
 
 /// Bytes per SBET record.
 pub const SBET_RECORD_BYTES: usize = 136;
@@ -99,14 +96,6 @@ impl SbetRecord {
             rate_z_radps: a[16],
         }
     }
-
-    fn decode(bytes: &[u8]) -> Self {
-        let mut a = [0.0; 17];
-        for (k, v) in a.iter_mut().enumerate() {
-            *v = f64_le(bytes, 8 * k);
-        }
-        Self::from_array(a)
-    }
 }
 
 const FIELD_NAMES: [&str; 17] = [
@@ -129,120 +118,30 @@ const FIELD_NAMES: [&str; 17] = [
     "z angular rate",
 ];
 
+impl TimedRecord for SbetRecord {
+    const FIELDS: usize = 17;
+    const KIND: &'static str = "SBET";
+
+    fn field_names() -> &'static [&'static str] {
+        &FIELD_NAMES
+    }
+
+    fn from_fields(fields: &[f64]) -> Self {
+        Self::from_array(fields.try_into().expect("17 fields"))
+    }
+
+    fn to_fields(&self, out: &mut [f64]) {
+        out.copy_from_slice(&self.to_array());
+    }
+
+    fn problem(fields: &[f64]) -> Option<String> {
+        (fields[1].abs() > std::f64::consts::FRAC_PI_2)
+            .then(|| format!("latitude {} rad is outside [-pi/2, pi/2]", fields[1]))
+    }
+}
+
 /// A validated, memory-mapped SBET file.
-#[derive(Debug)]
-pub struct SbetFile {
-    records: MappedRecords,
-}
-
-impl SbetFile {
-    /// Maps and validates `path`: whole records, at least one, every field finite, latitude in
-    /// [-pi/2, pi/2], time strictly increasing. The first problem found is reported with its
-    /// 0-based record index.
-    pub fn open(path: &Path) -> Result<Self> {
-        let records = MappedRecords::open(path, 0, SBET_RECORD_BYTES, "SBET")?;
-        if records.is_empty() {
-            return Err(Error::bad_file(path, "SBET file has no records"));
-        }
-        let file = SbetFile { records };
-        file.validate()?;
-        Ok(file)
-    }
-
-    fn validate(&self) -> Result<()> {
-        let mut prev_t = f64::NEG_INFINITY;
-        for i in 0..self.len() {
-            let r = self.record(i).to_array();
-            let at = || format!("record {i}");
-            if let Some(k) = r.iter().position(|v| !v.is_finite()) {
-                let msg = format!("{} is {} (not finite)", FIELD_NAMES[k], r[k]);
-                return Err(Error::bad_record(self.path(), at(), msg));
-            }
-            if r[1].abs() > std::f64::consts::FRAC_PI_2 {
-                let msg = format!("latitude {} rad is outside [-pi/2, pi/2]", r[1]);
-                return Err(Error::bad_record(self.path(), at(), msg));
-            }
-            if r[0] <= prev_t {
-                let msg = format!(
-                    "time {} s does not increase (previous record {prev_t} s): \
-                     time going backwards or repeating",
-                    r[0]
-                );
-                return Err(Error::bad_record(self.path(), at(), msg));
-            }
-            prev_t = r[0];
-        }
-        Ok(())
-    }
-
-    /// File path.
-    pub fn path(&self) -> &Path {
-        self.records.path()
-    }
-
-    /// Number of records (>= 1).
-    pub fn len(&self) -> usize {
-        self.records.len()
-    }
-
-    /// Always false: an open SBET has at least one record.
-    pub fn is_empty(&self) -> bool {
-        false
-    }
-
-    /// Record `i`.
-    #[inline]
-    pub fn record(&self, i: usize) -> SbetRecord {
-        SbetRecord::decode(self.records.record(i))
-    }
-
-    /// Time of record `i` (s).
-    #[inline]
-    pub fn time_s(&self, i: usize) -> f64 {
-        f64_le(self.records.record(i), 0)
-    }
-}
+pub type SbetFile = TimedFile<SbetRecord>;
 
 /// Streaming, atomic SBET writer.
-pub struct SbetWriter {
-    out: AtomicFile,
-    last_t: f64,
-    count: u64,
-}
-
-impl SbetWriter {
-    /// Starts writing `path`.
-    pub fn create(path: &Path) -> Result<Self> {
-        Ok(SbetWriter {
-            out: AtomicFile::create(path)?,
-            last_t: f64::NEG_INFINITY,
-            count: 0,
-        })
-    }
-
-    /// Appends a record; refuses non-increasing time or non-finite fields.
-    pub fn push(&mut self, r: &SbetRecord) -> Result<()> {
-        let a = r.to_array();
-        if a.iter().any(|v| !v.is_finite()) || r.time_s <= self.last_t {
-            let msg = "refusing to write a non-finite or non-increasing-time record";
-            return Err(Error::bad_record(
-                self.out.path(),
-                format!("record {}", self.count),
-                msg,
-            ));
-        }
-        let mut buf = [0u8; SBET_RECORD_BYTES];
-        for (k, v) in a.iter().enumerate() {
-            buf[8 * k..8 * k + 8].copy_from_slice(&v.to_le_bytes());
-        }
-        self.last_t = r.time_s;
-        self.count += 1;
-        self.out.write_all(&buf)
-    }
-
-    /// Finishes the file atomically; returns the record count.
-    pub fn finish(self) -> Result<u64> {
-        self.out.commit()?;
-        Ok(self.count)
-    }
-}
+pub type SbetWriter = TimedWriter<SbetRecord>;
