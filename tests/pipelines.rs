@@ -91,3 +91,40 @@ fn the_demo_runs_and_matches_the_truth() {
     let [rms, _, _] = d.error_3d_m;
     assert!(rms > 0.005 && rms < 0.035, "3D RMS {rms} m");
 }
+
+/// TOML code blocks of a Markdown file.
+fn toml_blocks(markdown: &str) -> Vec<String> {
+    markdown
+        .split("```toml\n")
+        .skip(1)
+        .map(|rest| rest.split("```").next().unwrap_or_default().to_string())
+        .collect()
+}
+
+#[test]
+fn pipeline_examples_in_the_docs_are_valid() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let dir = tempfile::tempdir().unwrap();
+    let mut checked = 0;
+    for doc in [
+        "README.md",
+        "docs/pipeline.md",
+        "docs/uncertainty.md",
+        "docs/sync.md",
+    ] {
+        let Ok(text) = std::fs::read_to_string(root.join(doc)) else {
+            continue;
+        };
+        for (k, block) in toml_blocks(&text).into_iter().enumerate() {
+            if !block.contains("[inputs]") {
+                continue;
+            }
+            let path = dir.path().join(format!("example{k}.toml"));
+            std::fs::write(&path, &block).unwrap();
+            kinescan::pipeline::config::load(&path, &[])
+                .unwrap_or_else(|e| panic!("{doc} block {k}: {e}"));
+            checked += 1;
+        }
+    }
+    assert!(checked >= 1, "the README's worked example must be checked");
+}
