@@ -14,5 +14,6 @@ pub mod plot;
 pub use error::{Error, Result};
 pub mod georef;
 pub mod pipeline;
+pub mod sim;
 pub mod timing;
 pub mod trajectory;

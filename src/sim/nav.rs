@@ -1,0 +1,231 @@
+//! The navigation solution as an INS/GNSS Kalman smoother would output it: the true samples
+//! plus first-order Gauss-Markov position (north, east, down) and attitude (roll, pitch,
+//! heading) errors, larger inside GNSS outages, plus the navigation-level systematic effects
+//! (attitude latency, heading bias, drift in outages). Written as SBET + SMRMSG; the SMRMSG
+//! sigmas are exactly the injected processes' standard deviations.
+//!
+//! Each error is `sigma(t) * z(t)` with `z` a unit-variance Gauss-Markov process sampled
+//! exactly: `z_{k+1} = phi z_k + sqrt(1 - phi^2) w_k`, `phi = exp(-dt / tau)`, `z_0 ~ N(0, 1)`.
+//! `sigma(t)` is linear between SMRMSG records, where it is the configured sigma times
+//! `outage_sigma_factor` inside an outage and 1 outside.
+
+use super::dynamics::TruthGen;
+use super::scenario::Scenario;
+use crate::geo::ellipsoid::{meridian_radius_m, prime_vertical_radius_m};
+use crate::geo::rotations::roll_pitch_heading;
+use crate::io::sbet::{SbetRecord, SbetWriter};
+use crate::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
+use crate::trajectory::{interpolate, NavSample};
+use crate::Result;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use std::collections::VecDeque;
+use std::path::Path;
+
+/// Unit-variance first-order Gauss-Markov process with exact discretisation.
+#[derive(Debug, Clone)]
+pub struct GaussMarkov {
+    phi: f64,
+    drive: f64,
+    z: f64,
+}
+
+impl GaussMarkov {
+    /// Process with correlation time `tau_s` sampled every `dt_s`, started from its
+    /// stationary distribution.
+    pub fn new(tau_s: f64, dt_s: f64, rng: &mut ChaCha8Rng) -> Self {
+        let phi = (-dt_s / tau_s).exp();
+        GaussMarkov {
+            phi,
+            drive: (1.0 - phi * phi).sqrt(),
+            z: StandardNormal.sample(rng),
+        }
+    }
+    /// Current value.
+    pub fn value(&self) -> f64 {
+        self.z
+    }
+    /// Advances one step.
+    pub fn step(&mut self, rng: &mut ChaCha8Rng) {
+        let w: f64 = StandardNormal.sample(rng);
+        self.z = self.phi * self.z + self.drive * w;
+    }
+}
+
+/// Counts of navigation records written.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct NavCounts {
+    /// SBET records (nav solution and truth each).
+    pub sbet_records: u64,
+    /// SMRMSG records.
+    pub smrmsg_records: u64,
+}
+
+/// Where the navigation files go.
+pub struct NavPaths<'a> {
+    /// Nav solution SBET.
+    pub sbet: &'a Path,
+    /// Its SMRMSG.
+    pub smrmsg: &'a Path,
+    /// True trajectory SBET, if wanted.
+    pub truth_sbet: Option<&'a Path>,
+}
+
+/// Number of SBET records: covers the duration, ends on an SMRMSG record.
+pub fn sample_count(sc: &Scenario) -> u64 {
+    let m = smrmsg_every(sc);
+    let n = (sc.duration_s * sc.vehicle.nav_rate_hz).ceil() as u64;
+    n.div_ceil(m) * m + 1
+}
+
+fn smrmsg_every(sc: &Scenario) -> u64 {
+    (sc.vehicle.nav_rate_hz / sc.nav_errors.smrmsg_rate_hz).round() as u64
+}
+
+/// Outage factor on the sigmas at relative time `tr` (s), on the SMRMSG grid.
+fn outage_factor(sc: &Scenario, tr: f64) -> f64 {
+    let e = &sc.nav_errors;
+    if e.outages_s.iter().any(|o| tr >= o[0] && tr < o[1]) {
+        e.outage_sigma_factor
+    } else {
+        1.0
+    }
+}
+
+/// Writes the nav solution (and truth) SBET and SMRMSG from the true samples of `gen`.
+pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<NavCounts> {
+    let rate = sc.vehicle.nav_rate_hz;
+    let dt = 1.0 / rate;
+    let e = &sc.nav_errors;
+    let fx = &sc.effects;
+    let tau = fx.attitude_latency_s.unwrap_or(0.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x0A7E_0000_0000_0003);
+    let mut gm: Vec<GaussMarkov> = (0..6)
+        .map(|i| {
+            GaussMarkov::new(
+                if i < 3 {
+                    e.position_tau_s
+                } else {
+                    e.attitude_tau_s
+                },
+                dt,
+                &mut rng,
+            )
+        })
+        .collect();
+    let sig = [
+        e.position_sigma_m[0],
+        e.position_sigma_m[1],
+        e.position_sigma_m[2],
+        e.attitude_sigma_deg[0].to_radians(),
+        e.attitude_sigma_deg[1].to_radians(),
+        e.attitude_sigma_deg[2].to_radians(),
+    ];
+    let m = smrmsg_every(sc);
+    let n = sample_count(sc);
+    let mut sbet = SbetWriter::create(paths.sbet)?;
+    let mut smr = SmrmsgWriter::create(paths.smrmsg)?;
+    let mut truth = paths.truth_sbet.map(SbetWriter::create).transpose()?;
+    let mut window = Window::default();
+    let lead = (tau.min(0.0).abs() * rate).ceil() as u64 + 2;
+    let mut smr_count = 0;
+    for k in 0..n {
+        window.fill(&mut gen, k + lead);
+        let t_rec = window.get(k);
+        let tr = t_rec.time_s - sc.start_time_s;
+        let (j, frac) = (k / m, (k % m) as f64 / m as f64);
+        let knot = |j: u64| outage_factor(sc, (j * m) as f64 / rate);
+        let f = knot(j) + frac * (knot(j + 1) - knot(j));
+        let err: Vec<f64> = (0..6).map(|i| sig[i] * f * gm[i].value()).collect();
+        let mut rec = t_rec;
+        if tau != 0.0 {
+            let (r, p, h) = window.attitude_at(t_rec.time_s - tau, sc.start_time_s, rate);
+            (rec.roll_rad, rec.pitch_rad, rec.platform_heading_rad) = (r, p, h);
+        }
+        let mut d_ned = [err[0], err[1], err[2]];
+        if let Some(drift) = fx.outage_drift_mps {
+            if let Some(o) = e.outages_s.iter().find(|o| tr >= o[0] && tr < o[1]) {
+                for i in 0..3 {
+                    d_ned[i] += drift[i] * (tr - o[0]);
+                }
+            }
+        }
+        let h = rec.alt_m;
+        rec.lat_rad += d_ned[0] / (meridian_radius_m(rec.lat_rad) + h);
+        rec.lon_rad += d_ned[1] / ((prime_vertical_radius_m(rec.lat_rad) + h) * rec.lat_rad.cos());
+        rec.alt_m -= d_ned[2];
+        rec.roll_rad += err[3];
+        rec.pitch_rad += err[4];
+        rec.platform_heading_rad += err[5] + fx.heading_bias_deg.unwrap_or(0.0).to_radians();
+        sbet.push(&rec)?;
+        if let Some(w) = truth.as_mut() {
+            w.push(&t_rec)?;
+        }
+        if k % m == 0 {
+            let arcmin = |s: f64| s.to_degrees() * 60.0 * f;
+            smr.push(&SmrmsgRecord {
+                time_s: t_rec.time_s,
+                north_m: sig[0] * f,
+                east_m: sig[1] * f,
+                down_m: sig[2] * f,
+                vel_north_mps: e.velocity_sigma_mps * f,
+                vel_east_mps: e.velocity_sigma_mps * f,
+                vel_down_mps: e.velocity_sigma_mps * f,
+                roll_arcmin: arcmin(sig[3]),
+                pitch_arcmin: arcmin(sig[4]),
+                heading_arcmin: arcmin(sig[5]),
+            })?;
+            smr_count += 1;
+        }
+        for g in gm.iter_mut() {
+            g.step(&mut rng);
+        }
+        window.drop_before(k.saturating_sub((tau.max(0.0) * rate).ceil() as u64 + 2));
+    }
+    let sbet_records = sbet.finish()?;
+    smr.finish()?;
+    if let Some(w) = truth {
+        w.finish()?;
+    }
+    Ok(NavCounts {
+        sbet_records,
+        smrmsg_records: smr_count,
+    })
+}
+
+/// Sliding window of true samples `base..base + len`.
+#[derive(Default)]
+struct Window {
+    base: u64,
+    recs: VecDeque<SbetRecord>,
+}
+
+impl Window {
+    fn fill(&mut self, gen: &mut TruthGen, upto: u64) {
+        while gen.next_index() <= upto {
+            self.recs.push_back(gen.next_sample());
+        }
+    }
+    fn get(&self, k: u64) -> SbetRecord {
+        self.recs[(k - self.base) as usize]
+    }
+    fn drop_before(&mut self, k: u64) {
+        while self.base < k {
+            self.recs.pop_front();
+            self.base += 1;
+        }
+    }
+    /// True attitude (roll, pitch, heading in [0, 2 pi)) at `t`, interpolated as the truth
+    /// is; held at the first sample before the trajectory starts.
+    fn attitude_at(&self, t: f64, start: f64, rate: f64) -> (f64, f64, f64) {
+        let k = ((t - start) * rate).floor().max(0.0) as u64;
+        let k = k.clamp(self.base, self.base + self.recs.len() as u64 - 2);
+        let (a, b) = (
+            NavSample::from_sbet(&self.get(k)),
+            NavSample::from_sbet(&self.get(k + 1)),
+        );
+        let s = interpolate(&a, &b, t.max(start));
+        roll_pitch_heading(&s.q_b_to_n)
+    }
+}

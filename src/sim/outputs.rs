@@ -1,0 +1,296 @@
+//! Truth and reference outputs: the per-return truth sidecar, control points, reference
+//! patches and `truth.json`.
+//!
+//! Truth sidecar layout (little-endian): header 64 bytes: magic `KSTRUTH1`, u32 version (1),
+//! u32 record bytes (24), u32 flags (0), u32 reserved, u64 record count, 32 reserved bytes.
+//! Then one record per return of `profiles.bin`, same order: f64 x, y, z, the true point in
+//! ECEF (m); NaN in all three for a missing return.
+
+use super::dynamics::Frame;
+use super::nav::NavCounts;
+use super::route::Route;
+use super::scanner::ScannerModel;
+use super::scenario::{Scenario, SceneKind};
+use super::scene::Shape;
+use super::world::World;
+use super::{files, SimSummary};
+use crate::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
+use crate::io::atomic::{write_atomic, AtomicFile};
+use crate::io::patches::{write_patches, PlanarPatch};
+use crate::io::points::{write_control_points, ControlPoint};
+use crate::{Error, Result};
+use nalgebra::Vector3;
+use std::path::Path;
+
+/// Magic bytes of the truth sidecar.
+pub const TRUTH_MAGIC: &[u8; 8] = b"KSTRUTH1";
+/// Header size of the truth sidecar (bytes).
+pub const TRUTH_HEADER_BYTES: usize = 64;
+/// Record size of the truth sidecar (bytes).
+pub const TRUTH_RECORD_BYTES: usize = 24;
+
+/// Streaming writer of the truth sidecar.
+pub(crate) struct TruthPointsWriter {
+    out: AtomicFile,
+    count: u64,
+}
+
+impl TruthPointsWriter {
+    pub(crate) fn create(path: &Path) -> Result<Self> {
+        let mut out = AtomicFile::create(path)?;
+        out.write_all(&header(0))?;
+        Ok(TruthPointsWriter { out, count: 0 })
+    }
+    pub(crate) fn push_encoded(&mut self, bytes: &[u8]) -> Result<()> {
+        self.count += (bytes.len() / TRUTH_RECORD_BYTES) as u64;
+        self.out.write_all(bytes)
+    }
+    pub(crate) fn finish(mut self) -> Result<u64> {
+        self.out.write_at(0, &header(self.count))?;
+        self.out.commit()?;
+        Ok(self.count)
+    }
+}
+
+fn header(count: u64) -> [u8; TRUTH_HEADER_BYTES] {
+    let mut h = [0u8; TRUTH_HEADER_BYTES];
+    h[0..8].copy_from_slice(TRUTH_MAGIC);
+    h[8..12].copy_from_slice(&1u32.to_le_bytes());
+    h[12..16].copy_from_slice(&(TRUTH_RECORD_BYTES as u32).to_le_bytes());
+    h[24..32].copy_from_slice(&count.to_le_bytes());
+    h
+}
+
+/// Reads a truth sidecar whole (for tests and small surveys): one `[x, y, z]` per return.
+pub fn read_truth_points(path: &Path) -> Result<Vec<[f64; 3]>> {
+    let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if b.len() < TRUTH_HEADER_BYTES || &b[0..8] != TRUTH_MAGIC {
+        return Err(Error::bad_file(
+            path,
+            "not a kinescan truth sidecar (bad magic)",
+        ));
+    }
+    let count = u64::from_le_bytes(b[24..32].try_into().expect("8 bytes")) as usize;
+    let body = &b[TRUTH_HEADER_BYTES..];
+    if body.len() != count * TRUTH_RECORD_BYTES {
+        return Err(Error::bad_file(
+            path,
+            format!("header says {count} records, size disagrees"),
+        ));
+    }
+    let f = |c: &[u8]| f64::from_le_bytes(c.try_into().expect("8 bytes"));
+    Ok(body
+        .chunks_exact(TRUTH_RECORD_BYTES)
+        .map(|r| [f(&r[0..8]), f(&r[8..16]), f(&r[16..24])])
+        .collect())
+}
+
+/// Nominal survey sigma written for control points and patches (m); the truth is exact.
+const SURVEY_SIGMA_M: f64 = 0.001;
+
+/// Writes control points (every landmark) and reference patches (facades with at least
+/// `output.patch_min_returns` returns, ground squares along the part of the route driven
+/// while scanning).
+pub(crate) fn write_references(
+    sc: &Scenario,
+    world: &World,
+    route: &Route,
+    frame: Frame,
+    surface_hits: &[u32],
+    out_dir: &Path,
+) -> Result<()> {
+    let points: Vec<ControlPoint> = world
+        .landmarks
+        .iter()
+        .map(|l| {
+            let g = ecef_to_geodetic(&frame.to_ecef(&l.enu));
+            ControlPoint {
+                id: l.id.clone(),
+                lat_rad: g.lat_rad,
+                lon_rad: g.lon_rad,
+                h_m: g.h_m,
+                sigma_m: SURVEY_SIGMA_M,
+            }
+        })
+        .collect();
+    write_control_points(&out_dir.join(files::CONTROL_POINTS), &points)?;
+    let mut patches = Vec::new();
+    let curb = if sc.scene.kind == SceneKind::Streets {
+        sc.scene.curb_height_m
+    } else {
+        0.0
+    };
+    let scene = &world.scene;
+    for (id, obj) in scene.objects.iter().enumerate() {
+        let Shape::Box {
+            centre,
+            r_l_to_enu,
+            half_m,
+        } = obj.shape
+        else {
+            continue;
+        };
+        if obj.class != super::scene::Class::Building {
+            continue;
+        }
+        for face in 0..4usize {
+            if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
+                continue;
+            }
+            let (axis, sign) = (face / 2, if face % 2 == 1 { 1.0 } else { -1.0 });
+            let normal = r_l_to_enu.column(axis) * sign;
+            let along = r_l_to_enu.column(1 - axis).into_owned();
+            let half_len = half_m[1 - axis];
+            let c = centre + normal * half_m[axis];
+            let ends = [c + along * half_len, c - along * half_len];
+            let low = ends
+                .iter()
+                .map(|e| scene.ground_z(e.x, e.y))
+                .fold(f64::MIN, f64::max)
+                + curb;
+            let top = centre.z + half_m.z;
+            let mid = Vector3::new(c.x, c.y, (low + top) / 2.0);
+            patches.push(patch(
+                format!("FAC{id}_{face}"),
+                &frame,
+                mid,
+                normal.into_owned(),
+                half_len,
+                (top - low) / 2.0,
+            ));
+        }
+    }
+    let scan_end_s = sc.duration_s - sc.scanner.end_margin_s;
+    let driven = if scan_end_s >= route.lap_s() {
+        route.length_m()
+    } else {
+        route.motion(scan_end_s).s_m
+    };
+    let mut s = 10.0;
+    let up = scene.ground_normal();
+    while s < driven.min(route.length_m()) - 10.0 {
+        let p = route.at(s);
+        let off = sc.vehicle.lane_offset_m;
+        let (x, y) = (p.xy[0] - p.dir[1] * off, p.xy[1] + p.dir[0] * off);
+        let c = Vector3::new(x, y, scene.ground_z(x, y));
+        patches.push(patch(
+            format!("GND{}", patches.len()),
+            &frame,
+            c,
+            up,
+            1.5,
+            1.5,
+        ));
+        s += 20.0;
+    }
+    write_patches(&out_dir.join(files::PATCHES), &patches)
+}
+
+fn patch(
+    id: String,
+    frame: &Frame,
+    c: Vector3<f64>,
+    n: Vector3<f64>,
+    hl: f64,
+    hh: f64,
+) -> PlanarPatch {
+    let g = ecef_to_geodetic(&frame.to_ecef(&c));
+    let n_local = r_enu_to_e(g.lat_rad, g.lon_rad).transpose() * (frame.r_enu_to_e * n);
+    let n_local = n_local.normalize();
+    PlanarPatch {
+        id,
+        lat_rad: g.lat_rad,
+        lon_rad: g.lon_rad,
+        h_m: g.h_m,
+        normal_enu: [n_local.x, n_local.y, n_local.z],
+        half_length_m: hl,
+        half_height_m: hh,
+        sigma_m: Some(SURVEY_SIGMA_M),
+    }
+}
+
+/// Writes `truth.json`: configured sensor (what to give the pipeline), true sensor, clock,
+/// injected effects, navigation error statistics, files and counts.
+pub(crate) fn write_truth_json(
+    sc: &Scenario,
+    m: &ScannerModel,
+    route: &Route,
+    nav: &NavCounts,
+    summary: &SimSummary,
+    out_dir: &Path,
+) -> Result<()> {
+    let sensor = |s: &crate::georef::Sensor| {
+        serde_json::json!({
+            "lever_arm_b_m": [s.lever_arm_b_m.x, s.lever_arm_b_m.y, s.lever_arm_b_m.z],
+            "boresight_rad": [s.boresight_rad.x, s.boresight_rad.y, s.boresight_rad.z],
+            "boresight_deg": [s.boresight_rad.x.to_degrees(), s.boresight_rad.y.to_degrees(), s.boresight_rad.z.to_degrees()],
+            "alpha0_rad": s.alpha0_rad,
+            "range_zero_m": s.range_zero_m,
+        })
+    };
+    let mirror = &m.clock.mirror;
+    let fx = &sc.effects;
+    let e = &sc.nav_errors;
+    let doc = serde_json::json!({
+        "format": "kinescan-sim-truth/1",
+        "scenario": sc.name,
+        "seed": sc.seed,
+        "gps_week": sc.gps_week,
+        "origin": sc.origin,
+        "start_time_s": sc.start_time_s,
+        "duration_s": sc.duration_s,
+        "configured_sensor": sensor(&m.configured),
+        "true_sensor": sensor(&m.truth),
+        "scanner": {
+            "beta_start_rad": mirror.beta_start_rad,
+            "direction": mirror.direction.sign(),
+            "points_per_profile": m.points_per_profile(),
+            "nominal_period_s": sc.scanner.period_s,
+            "true_period_s": m.true_period_s,
+            "t0_s": m.clock.t0_s,
+            "pps_time_tags": sc.scanner.pps_time_tags,
+            "max_range_m": sc.scanner.max_range_m,
+            "min_range_m": sc.scanner.min_range_m,
+            "sigma_range_m": sc.scanner.sigma_range_m,
+            "sigma_angle_rad": sc.scanner.sigma_angle_deg.to_radians(),
+            "clock_quadratic_per_s": fx.clock_drift_quadratic_per_s.unwrap_or(0.0),
+            "mirror_wobble_s": fx.mirror_wobble_s.unwrap_or([0.0, 1.0]),
+            "encoder_offset_rad": fx.encoder_offset_deg.unwrap_or(0.0).to_radians(),
+            "range_scale_ppm": fx.range_scale_ppm.unwrap_or(0.0),
+        },
+        "latency": {
+            "configured_attitude_latency_s": 0.0,
+            "true_attitude_latency_s": fx.attitude_latency_s.unwrap_or(0.0),
+            "position_latency_s": 0.0,
+        },
+        "effects": fx.injected(),
+        "nav_errors": {
+            "position_sigma_m": e.position_sigma_m,
+            "position_tau_s": e.position_tau_s,
+            "attitude_sigma_rad": e.attitude_sigma_deg.map(f64::to_radians),
+            "attitude_tau_s": e.attitude_tau_s,
+            "outages_s": e.outages_s,
+            "outage_sigma_factor": e.outage_sigma_factor,
+            "heading_bias_rad": fx.heading_bias_deg.unwrap_or(0.0).to_radians(),
+            "outage_drift_mps": fx.outage_drift_mps,
+        },
+        "route": { "lap_length_m": route.length_m(), "lap_duration_s": route.lap_s() },
+        "counts": {
+            "sbet_records": nav.sbet_records,
+            "smrmsg_records": nav.smrmsg_records,
+            "profiles": summary.profiles,
+            "returns": summary.returns,
+            "valid_returns": summary.valid_returns,
+        },
+        "files": {
+            "sbet": files::SBET, "smrmsg": files::SMRMSG,
+            "truth_sbet": sc.output.truth_sbet.then_some(files::TRUTH_SBET),
+            "profiles": files::PROFILES,
+            "truth_points": sc.output.truth_points.then_some(files::TRUTH_POINTS),
+            "control_points": files::CONTROL_POINTS, "patches": files::PATCHES,
+        },
+        "truth_points_layout": "64-byte header (magic KSTRUTH1, u32 version 1, u32 record bytes 24, u32 flags, u32 reserved, u64 count, 32 reserved); per return in profiles.bin order: f64 x, y, z ECEF (m), NaN when missing",
+    });
+    let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Invalid(e.to_string()))?;
+    write_atomic(&out_dir.join(files::TRUTH_JSON), text.as_bytes())
+}
