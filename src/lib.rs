@@ -15,5 +15,6 @@ pub use error::{Error, Result};
 pub mod georef;
 pub mod pipeline;
 pub mod sim;
+pub mod sync;
 pub mod timing;
 pub mod trajectory;
