@@ -291,6 +291,16 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         seconds: started.elapsed().as_secs_f64(),
     });
 
+    let sync_started = Instant::now();
+    let stem = c.output.las.file_stem().unwrap_or_default().to_string_lossy();
+    let sync = crate::sync::stage::run(c, &traj, &profile_files, &out_dir, &stem)?;
+    if c.sync.is_some() {
+        stages.push(StageTiming {
+            stage: "sync".into(),
+            seconds: sync_started.elapsed().as_secs_f64(),
+        });
+    }
+
     let georef_started = Instant::now();
     let settings = SinkSettings::new(c, &frame, &traj, &p.path)?;
     let mut sink = LasSink::new(settings);
@@ -299,7 +309,12 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     let mut inputs = Vec::new();
     for (k, (original, file)) in profile_files.iter().enumerate() {
         let psid = c.inputs.first_point_source_id.saturating_add(k as u16);
-        let g = georeferencer(p, &traj, &frame, file, psid)?;
+        let mut g = georeferencer(p, &traj, &frame, file, psid)?;
+        if let Some(s) = sync.get(k) {
+            g.clock.t0_s = s.result.clock.t0_s;
+            g.clock.period_s = s.result.clock.period_s;
+            g.attitude_latency_s = s.result.attitude_latency_s.unwrap_or(g.attitude_latency_s);
+        }
         sink.start_input(original)?;
         let report = process_file(
             &g,
@@ -349,6 +364,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         stages,
         returns_per_second: totals.read as f64 / georef_s.max(1e-9),
         peak_rss_bytes: super::report::peak_rss_bytes(),
+        sync,
     })
 }
 

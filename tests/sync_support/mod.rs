@@ -19,10 +19,17 @@ use std::path::Path;
 /// The paper-geometry scenario file.
 pub const PAPER: &str = "pipelines/scenario_sync_paper.toml";
 
-/// The scenario at `path` with `seed`, without the (large) truth sidecars.
+/// The scenario at `path` with `seed`, without the (large) truth sidecars. The laps repeat
+/// exactly, so the phase of the profiles at each pass is randomised per seed (t0 within a
+/// period, the clock drift within +-50 ppm of the file's): otherwise every seed would see
+/// the same profile-quantisation errors.
 pub fn scenario(path: &str, seed: u64) -> Scenario {
     let mut sc = Scenario::load(Path::new(path)).unwrap();
     sc.seed = seed;
+    let u = |k: f64| (seed as f64 * k).fract();
+    sc.scanner.t0_offset_s += u(0.618_033_988_7) * sc.scanner.period_s;
+    let drift = sc.effects.clock_drift_ppm.unwrap_or(0.0);
+    sc.effects.clock_drift_ppm = Some(drift + 100.0 * (u(0.754_877_666_2) - 0.5));
     sc.output.truth_points = false;
     sc.output.truth_sbet = false;
     sc
