@@ -555,16 +555,20 @@ fn refine(
         });
     }
     let model = model(traj, sensor, o);
-    let mut theta = DVector::from_vec(vec![paper.t0_s - o.t0_approx_s, paper.period_s]);
+    let theta = DVector::from_vec(vec![paper.t0_s - o.t0_approx_s, paper.period_s]);
+    let limit_s = paper.sigma_t0_s.min(o.period_approx_s);
+    check_clock_constrained(&model.normal(&theta, &data)?.0, limit_s)?;
     let mut latency_note = None;
     if o.estimate_latency {
-        theta = DVector::from_vec(vec![theta[0], theta[1], o.attitude_latency_s]);
-        let (th, cov, _) = model.solve(theta.clone(), &data)?;
-        let (h, _, _) = model.normal(&th, &data)?;
+        // Observability first, at the starting point: an unconstrained latency would only
+        // make Gauss-Newton wander.
+        let with_tau = DVector::from_vec(vec![theta[0], theta[1], o.attitude_latency_s]);
+        let (h, _, _) = model.normal(&with_tau, &data)?;
         let (_, vif) = refined::conditioning(&h);
-        let sigma = cov[(2, 2)].sqrt();
+        let sigma = refined::invert_scaled(&h).map_or(f64::INFINITY, |c| c[(2, 2)].sqrt());
         if sigma <= o.max_latency_sigma_s && vif[2] < 1e4 {
-            return finish(&model, th, &data, o, None);
+            let (th, _, _) = model.solve(with_tau, &data)?;
+            return finish(&model, th, &data, o, None, limit_s);
         }
         latency_note = Some(format!(
             "attitude latency not constrained by these sightings (sigma {sigma:.3e} s > \
@@ -572,10 +576,31 @@ fn refine(
              targets are scanned; t0 and T are reported with the latency fixed at {} s",
             o.max_latency_sigma_s, vif[2], o.attitude_latency_s
         ));
-        theta = DVector::from_vec(vec![theta[0], theta[1]]);
     }
     let (th, _, _) = model.solve(theta, &data)?;
-    finish(&model, th, &data, o, latency_note)
+    finish(&model, th, &data, o, latency_note, limit_s)
+}
+
+/// Refuses (t0, T) when the information matrix `h` (t0, T first) leaves them unconstrained:
+/// a variance inflation of 1e6 or more, or sigma t0 not below `limit_s` (the paper method's
+/// sigma: the target faces then add no timing information of their own, and what is left
+/// comes from second-order effects where the linearisation does not hold).
+fn check_clock_constrained(h: &nalgebra::DMatrix<f64>, limit_s: f64) -> Result<()> {
+    let (_, vif) = refined::conditioning(h);
+    let sigma_t0 = refined::invert_scaled(h).map_or(f64::INFINITY, |c| c[(0, 0)].sqrt());
+    if vif[..2].iter().all(|v| *v < 1e6) && sigma_t0 < limit_s {
+        return Ok(());
+    }
+    Err(Error::Numerical {
+        what: "sync refined estimator".into(),
+        problem: format!(
+            "t0 and T are not constrained by the target returns (sigma t0 {sigma_t0:.2e} s, \
+             not below {limit_s:.2e} s; variance inflation {:.1e}, {:.1e}): are the target \
+             faces parallel to the \
+             driving direction? Use method = \"paper\" or targets turned towards the route",
+            vif[0], vif[1]
+        ),
+    })
 }
 
 fn model<'a>(traj: &'a Trajectory, sensor: &'a Sensor, o: &SyncOptions) -> Model<'a> {
@@ -614,6 +639,7 @@ fn finish(
     data: &[(&[TargetReturn], Plane)],
     o: &SyncOptions,
     latency_note: Option<String>,
+    limit_s: f64,
 ) -> Result<RefinedEstimate> {
     let (h, _, chi2) = model.normal(&th, data)?;
     let cov = refined::invert_scaled(&h)?;
@@ -625,20 +651,7 @@ fn finish(
         .collect();
     let returns_used: usize = data.iter().map(|d| d.0.len()).sum();
     let c2 = Matrix2::new(cov[(0, 0)], cov[(0, 1)], cov[(1, 0)], cov[(1, 1)]);
-    let constrained = vif[..2].iter().all(|v| *v < 1e6) && c2[(0, 0)].sqrt() < o.period_approx_s;
-    if !constrained {
-        return Err(Error::Numerical {
-            what: "sync refined estimator".into(),
-            problem: format!(
-                "t0 and T are not constrained by the target returns (sigma t0 {:.2e} s, \
-                 variance inflation {:.1e}, {:.1e}): are the target faces parallel to the \
-                 driving direction? Use method = \"paper\" or yawed targets",
-                c2[(0, 0)].sqrt(),
-                vif[0],
-                vif[1]
-            ),
-        });
-    }
+    check_clock_constrained(&h, limit_s)?;
     let dof = returns_used.saturating_sub(p);
     Ok(RefinedEstimate {
         clock: ClockEstimate::new(o.t0_approx_s + th[0], th[1], &c2, chi2, dof),
