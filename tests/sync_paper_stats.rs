@@ -47,12 +47,16 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
         rs1.push(refined.sigma_period_s);
         z0.push((refined.t0_s - t0) / refined.sigma_t0_s);
         z1.push((refined.period_s - t) / refined.sigma_period_s);
-        let crb = cramer_rao_bound(&s.traj, &s.sensor, &s.targets, &r, &o, t0, t, None).unwrap();
+        let crb = cramer_rao_bound(&s.traj, &s.sensor, &s.targets, &r, &o, (t0, t), None).unwrap();
         crb0.push(crb[(0, 0)]);
         crb1.push(crb[(1, 1)]);
         // Georeferenced target returns after sync: their mean distance to the surveyed plane
         // against 2 sigma of the trajectory's stated accuracy (SMRMSG) and the survey.
-        for sg in r.sightings.iter().filter(|g| g.status == SightingStatus::Accepted) {
+        for sg in r
+            .sightings
+            .iter()
+            .filter(|g| g.status == SightingStatus::Accepted)
+        {
             sightings += 1;
             let tg = s.targets.iter().find(|t| t.id == sg.target).unwrap();
             let n = tg.normal_e.unwrap();
@@ -60,8 +64,7 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
             let mut sum = 0.0;
             for ret in &sg.returns {
                 let time = refined.t0_s
-                    + refined.period_s
-                        * (ret.profile as f64 + o.mirror.fraction(ret.beta_rad));
+                    + refined.period_s * (ret.profile as f64 + o.mirror.fraction(ret.beta_rad));
                 let pose = cur.at(time).unwrap();
                 let x = georeference(
                     &pose,
@@ -101,11 +104,17 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     assert!(rms(&pe0) / rms(&re0) >= 5.0 && rms(&pe1) / rms(&re1) >= 5.0);
     // Empirical std within 25% of the Cramer-Rao bound (2.5 sampling sigmas, see SEEDS).
     for (e, b) in [(std(&re0), crb_s0), (std(&re1), crb_s1)] {
-        assert!((e / b - 1.0).abs() <= 0.25, "empirical {e:.3e} vs CRB {b:.3e}");
+        assert!(
+            (e / b - 1.0).abs() <= 0.25,
+            "empirical {e:.3e} vs CRB {b:.3e}"
+        );
     }
     for z in [std(&z0), std(&z1)] {
         assert!((0.8..=1.25).contains(&z), "normalised error std {z:.3}");
     }
     // 2 sigma holds for 95.4% of Gaussian samples; 90% leaves 4 binomial sigmas at n = 400.
-    assert!(within as f64 >= 0.9 * total as f64, "{within}/{total} within 2 sigma");
+    assert!(
+        within as f64 >= 0.9 * total as f64,
+        "{within}/{total} within 2 sigma"
+    );
 }

@@ -78,7 +78,10 @@ fn sync_stage_feeds_georeferencing_and_the_report() {
     let c = report.sync[0].result.clock;
     // 4 sigma: a false failure once in ~16000 runs.
     assert!((c.t0_s - s.true_t0_s).abs() < 4.0 * c.sigma_t0_s, "{c:?}");
-    assert!((c.period_s - s.true_period_s).abs() < 4.0 * c.sigma_period_s, "{c:?}");
+    assert!(
+        (c.period_s - s.true_period_s).abs() < 4.0 * c.sigma_period_s,
+        "{c:?}"
+    );
     assert!(report.stages.iter().any(|st| st.stage == "sync"));
     assert_eq!(report.sync[0].plots.len(), 2);
     assert!(report.sync[0].plots.iter().all(|p| p.exists()));
@@ -101,7 +104,11 @@ fn bad_sync_tables_are_refused_naming_the_key() {
     let cases = [
         ("points = \"p.csv\"\nwindow = 1.0", "", "sync.window"),
         ("points = \"p.csv\"", "", "sync.t0_approx_s"),
-        ("points = \"p.csv\"\nwindow_s = 0.0", "t0_s = 1.0", "sync.window_s"),
+        (
+            "points = \"p.csv\"\nwindow_s = 0.0",
+            "t0_s = 1.0",
+            "sync.window_s",
+        ),
         (
             "points = \"p.csv\"\nestimate_latency = true",
             "t0_s = 1.0",

@@ -19,14 +19,27 @@ fn a_false_target_does_not_move_the_estimate() {
     let signed = survey(&sc, dirs[1].path());
     let o = options(&clean, -0.25);
     let a = estimate(&clean.traj, &clean.sensor, &clean.file, &clean.targets, &o).unwrap();
-    let b = estimate(&signed.traj, &signed.sensor, &signed.file, &signed.targets, &o).unwrap();
+    let b = estimate(
+        &signed.traj,
+        &signed.sensor,
+        &signed.file,
+        &signed.targets,
+        &o,
+    )
+    .unwrap();
     let first = b.sightings.iter().find(|s| s.target == "SYNC000").unwrap();
-    assert!(first.candidates >= 2, "the sign must be in the search window");
+    assert!(
+        first.candidates >= 2,
+        "the sign must be in the search window"
+    );
     for (x, y) in [(a.paper, b.paper), (a.clock, b.clock)] {
         assert!((x.t0_s - y.t0_s).abs() < y.sigma_t0_s, "{x:?} vs {y:?}");
         assert!((x.period_s - y.period_s).abs() < y.sigma_period_s);
     }
-    assert!(b.sightings.iter().all(|s| s.status == SightingStatus::Accepted));
+    assert!(b
+        .sightings
+        .iter()
+        .all(|s| s.status == SightingStatus::Accepted));
 }
 
 #[test]
@@ -35,7 +48,9 @@ fn too_few_sync_points_or_one_place_is_a_clear_error() {
     let s = survey(&scenario(PAPER, 2), dir.path());
     let o = options(&s, 0.1);
     let one = &s.targets[..1];
-    let e = estimate(&s.traj, &s.sensor, &s.file, one, &o).unwrap_err().to_string();
+    let e = estimate(&s.traj, &s.sensor, &s.file, one, &o)
+        .unwrap_err()
+        .to_string();
     assert!(e.contains("need at least 2 sync points"), "{e}");
     // Eight targets along the first street, 20 s of driving: every sighting at one place.
     let mut sc = scenario(PAPER, 2);
@@ -44,8 +59,13 @@ fn too_few_sync_points_or_one_place_is_a_clear_error() {
     let dir = tempfile::tempdir().unwrap();
     let s = survey(&sc, dir.path());
     let o = options(&s, 0.1);
-    let e = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap_err().to_string();
-    assert!(e.contains("all sightings lie within") && e.contains("T is not constrained"), "{e}");
+    let e = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("all sightings lie within") && e.contains("T is not constrained"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -66,8 +86,13 @@ fn refined_refuses_what_the_data_do_not_constrain() {
     let dir = tempfile::tempdir().unwrap();
     let s = survey(&sc, dir.path());
     let o = options(&s, 0.1);
-    let e = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap_err().to_string();
-    assert!(e.contains("not constrained") || e.contains("singular"), "{e}");
+    let e = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("not constrained") || e.contains("singular"),
+        "{e}"
+    );
     let mut o = options(&s, 0.1);
     o.method = Method::Paper;
     assert!(estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).is_ok());
@@ -96,6 +121,10 @@ fn hardware_tags_agree_with_software_sync_and_plots_are_written() {
     assert_eq!(files.len(), 3);
     for f in files {
         let bytes = std::fs::read(&f).unwrap();
-        assert!(bytes.starts_with(b"\x89PNG") && bytes.len() > 2000, "{}", f.display());
+        assert!(
+            bytes.starts_with(b"\x89PNG") && bytes.len() > 2000,
+            "{}",
+            f.display()
+        );
     }
 }

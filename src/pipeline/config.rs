@@ -519,7 +519,10 @@ fn validate_sync(sy: &SyncConfig, t: &TimeConfig, source: &str) -> Result<()> {
         ("sync.sigma_range_m", sy.sigma_range_m),
         ("sync.sigma_angle_deg", sy.sigma_angle_deg),
         ("sync.min_span_s", sy.min_span_s),
-        ("sync.period_approx_s", sy.period_approx_s.unwrap_or(t.period_s)),
+        (
+            "sync.period_approx_s",
+            sy.period_approx_s.unwrap_or(t.period_s),
+        ),
     ];
     for (key, v) in checks {
         if !pos(v) {

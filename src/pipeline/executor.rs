@@ -292,7 +292,12 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     });
 
     let sync_started = Instant::now();
-    let stem = c.output.las.file_stem().unwrap_or_default().to_string_lossy();
+    let stem = c
+        .output
+        .las
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy();
     let sync = crate::sync::stage::run(c, &traj, &profile_files, &out_dir, &stem)?;
     if c.sync.is_some() {
         stages.push(StageTiming {

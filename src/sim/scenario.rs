@@ -495,7 +495,12 @@ impl SceneCfg {
             c.range(&format!("scene.reflectance[{i}]"), *r, 0.0, 1.0);
         }
         c.range("scene.sync_reflectance", self.sync_reflectance, 0.0, 1000.0);
-        c.range("scene.sync_target_yaw_deg", self.sync_target_yaw_deg, -80.0, 80.0);
+        c.range(
+            "scene.sync_target_yaw_deg",
+            self.sync_target_yaw_deg,
+            -80.0,
+            80.0,
+        );
         c.range("scene.decoy_offset_m", self.decoy_offset_m, 0.0, 1000.0);
     }
 }

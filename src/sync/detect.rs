@@ -107,9 +107,9 @@ fn cluster(hits: &[TargetReturn], gap_m: f64) -> Vec<Cluster> {
         }
     }
     let mut groups: std::collections::BTreeMap<usize, Vec<TargetReturn>> = Default::default();
-    for i in 0..n {
+    for (i, h) in hits.iter().enumerate() {
         let r = root(&mut label, i);
-        groups.entry(r).or_default().push(hits[i]);
+        groups.entry(r).or_default().push(*h);
     }
     groups
         .into_values()
@@ -117,7 +117,12 @@ fn cluster(hits: &[TargetReturn], gap_m: f64) -> Vec<Cluster> {
             let k = returns.len() as f64;
             let mean_profile = returns.iter().map(|r| r.profile as f64).sum::<f64>() / k;
             let b0 = returns[0].beta_rad;
-            let beta = b0 + returns.iter().map(|r| wrap_pi(r.beta_rad - b0)).sum::<f64>() / k;
+            let beta = b0
+                + returns
+                    .iter()
+                    .map(|r| wrap_pi(r.beta_rad - b0))
+                    .sum::<f64>()
+                    / k;
             Cluster {
                 profile: mean_profile.round() as u32,
                 beta_rad: beta,

@@ -154,7 +154,10 @@ fn refine(
     let (o, m) = scan_plane(&pose, sensor);
     // d = m.(c - o): position error moves o, attitude error turns m and the lever arm.
     let r = r_b_to_e(&pose);
-    let (m_b, w_b) = (sensor.r_s_to_b.column(0).into_owned(), r.transpose() * (c - o));
+    let (m_b, w_b) = (
+        sensor.r_s_to_b.column(0).into_owned(),
+        r.transpose() * (c - o),
+    );
     let g = m_b.cross(&w_b) - sensor.lever_arm_b_m.cross(&m_b);
     let var = (m.transpose() * position_cov_e(&pose, &s) * m)[0]
         + sigma_c * sigma_c

@@ -294,8 +294,16 @@ pub fn estimate(
     let pts: Vec<(Vector3<f64>, f64)> = targets.iter().map(|t| (t.centre_e_m, t.sigma_m)).collect();
     let step = 0.02;
     let tau = o.attitude_latency_s;
-    let crossings =
-        geometry::crossings(traj, sensor, tau, &pts, t_a, t_b - step, step, o.max_range_m)?;
+    let crossings = geometry::crossings(
+        traj,
+        sensor,
+        tau,
+        &pts,
+        t_a,
+        t_b - step,
+        step,
+        o.max_range_m,
+    )?;
     let params = DetectParams {
         min_intensity: o.min_intensity,
         window_profiles: o.window_s / o.period_approx_s,
@@ -304,18 +312,30 @@ pub fn estimate(
         alpha0_rad: sensor.alpha0_rad,
         use_alpha_column: file.columns().alpha,
     };
-    let predict = |c: &Crossing, t0: f64, period: f64| {
-        (c.t_s - t0) / period - o.mirror.fraction(c.beta_rad)
-    };
+    let predict =
+        |c: &Crossing, t0: f64, period: f64| (c.t_s - t0) / period - o.mirror.fraction(c.beta_rad);
     let cands: Vec<Vec<Cluster>> = crossings
         .iter()
-        .map(|c| detect::candidates(file, c, predict(c, o.t0_approx_s, o.period_approx_s), &params))
+        .map(|c| {
+            detect::candidates(
+                file,
+                c,
+                predict(c, o.t0_approx_s, o.period_approx_s),
+                &params,
+            )
+        })
         .collect();
     let t_ref = o.t0_approx_s;
     let (fit, chosen, outliers) = associate(&crossings, &cands, o, t_ref, &predict)?;
-    let sightings = sightings(targets, &crossings, &cands, &chosen, &outliers, &fit, o, t_ref);
+    let sightings = sightings(
+        targets, &crossings, &cands, &chosen, &outliers, &fit, o, t_ref,
+    );
     check_usable(&sightings, o)?;
-    let dof = sightings.iter().filter(|s| s.status == SightingStatus::Accepted).count() - 2;
+    let dof = sightings
+        .iter()
+        .filter(|s| s.status == SightingStatus::Accepted)
+        .count()
+        - 2;
     let paper = ClockEstimate::new(t_ref + fit.x[0], fit.x[1], &fit.cov, fit.chi2, dof);
     let refined = match o.method {
         Method::Paper => None,
@@ -325,7 +345,14 @@ pub fn estimate(
     let hardware = file
         .columns()
         .time
-        .then(|| hardware::compare(&hardware::profile_tags(file), clock.t0_s, clock.period_s, &clock.cov()))
+        .then(|| {
+            hardware::compare(
+                &hardware::profile_tags(file),
+                clock.t0_s,
+                clock.period_s,
+                &clock.cov(),
+            )
+        })
         .flatten();
     Ok(SyncResult {
         method: o.method,
@@ -342,7 +369,10 @@ pub fn estimate(
 fn check_options(o: &SyncOptions) -> Result<()> {
     let bad = |k: &str, m: String| Err(Error::config("sync options", k, m));
     if !(o.period_approx_s > 0.0 && o.period_approx_s <= 1.0) {
-        return bad("period_approx_s", format!("must be in (0, 1] s, got {}", o.period_approx_s));
+        return bad(
+            "period_approx_s",
+            format!("must be in (0, 1] s, got {}", o.period_approx_s),
+        );
     }
     if !o.t0_approx_s.is_finite() {
         return bad("t0_approx_s", "must be finite".into());
@@ -379,7 +409,9 @@ fn associate(
             .map(|(c, cs)| {
                 let n = predict(c, clock.0, clock.1);
                 (0..cs.len()).min_by(|&a, &b| {
-                    (cs[a].mean_profile - n).abs().total_cmp(&(cs[b].mean_profile - n).abs())
+                    (cs[a].mean_profile - n)
+                        .abs()
+                        .total_cmp(&(cs[b].mean_profile - n).abs())
                 })
             })
             .collect();
@@ -388,14 +420,13 @@ fn associate(
         if active.len() < 2 {
             return Err(not_enough(active.len(), crossings.len(), o));
         }
-        let (fit, outliers) = paper::robust_fit(&obs, &active, o.outlier_sigma).ok_or_else(|| {
-            Error::Numerical {
+        let (fit, outliers) =
+            paper::robust_fit(&obs, &active, o.outlier_sigma).ok_or_else(|| Error::Numerical {
                 what: "sync".into(),
                 problem: "all sightings lie at one place: the mirror period T is not \
                           constrained; survey sync points seen at times far apart"
                     .into(),
-            }
-        })?;
+            })?;
         let stable = next == chosen;
         chosen = next;
         clock = (t_ref + fit.x[0], fit.x[1]);
@@ -501,7 +532,10 @@ fn sightings(
 
 /// Fewer than 2 sync points, or all sightings at one place: a clear error.
 fn check_usable(s: &[Sighting], o: &SyncOptions) -> Result<()> {
-    let ok: Vec<&Sighting> = s.iter().filter(|s| s.status == SightingStatus::Accepted).collect();
+    let ok: Vec<&Sighting> = s
+        .iter()
+        .filter(|s| s.status == SightingStatus::Accepted)
+        .collect();
     let mut ids: Vec<&str> = ok.iter().map(|s| s.target.as_str()).collect();
     ids.sort();
     ids.dedup();
@@ -517,9 +551,11 @@ fn check_usable(s: &[Sighting], o: &SyncOptions) -> Result<()> {
             ),
         });
     }
-    let (lo, hi) = ok.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| {
-        (a.min(s.crossing_time_s), b.max(s.crossing_time_s))
-    });
+    let (lo, hi) = ok
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), s| {
+            (a.min(s.crossing_time_s), b.max(s.crossing_time_s))
+        });
     if hi - lo < o.min_span_s {
         return Err(Error::Numerical {
             what: "sync".into(),
@@ -615,7 +651,10 @@ fn model<'a>(traj: &'a Trajectory, sensor: &'a Sensor, o: &SyncOptions) -> Model
     }
 }
 
-fn refined_data<'a>(targets: &[SyncTarget], sightings: &'a [Sighting]) -> Vec<(&'a [TargetReturn], Plane)> {
+fn refined_data<'a>(
+    targets: &[SyncTarget],
+    sightings: &'a [Sighting],
+) -> Vec<(&'a [TargetReturn], Plane)> {
     sightings
         .iter()
         .filter(|s| s.status == SightingStatus::Accepted)
@@ -645,9 +684,16 @@ fn finish(
     let cov = refined::invert_scaled(&h)?;
     let (cond, vif) = refined::conditioning(&h);
     let p = th.len();
-    let names = ["t0", "period", "attitude_latency"][..p].iter().map(|s| s.to_string()).collect();
+    let names = ["t0", "period", "attitude_latency"][..p]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
     let correlation = (0..p)
-        .map(|i| (0..p).map(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt()).collect())
+        .map(|i| {
+            (0..p)
+                .map(|j| cov[(i, j)] / (cov[(i, i)] * cov[(j, j)]).sqrt())
+                .collect()
+        })
         .collect();
     let returns_used: usize = data.iter().map(|d| d.0.len()).sum();
     let c2 = Matrix2::new(cov[(0, 0)], cov[(0, 1)], cov[(1, 0)], cov[(1, 1)]);
@@ -666,17 +712,17 @@ fn finish(
     })
 }
 
-/// Cramer-Rao bound of the refined measurement model at a given clock (and latency, which
-/// is then a parameter): the inverse information `(sum J' C^-1 J)^-1` over the accepted
-/// sightings of `result`, parameters (t0, T[, tau]). For tests against truth.
+/// Cramer-Rao bound of the refined measurement model at a given clock `(t0_s, period_s)`
+/// (and latency, which is then a parameter): the inverse information `(sum J' C^-1 J)^-1`
+/// over the accepted sightings of `result`, parameters (t0, T[, tau]). For tests against
+/// truth.
 pub fn cramer_rao_bound(
     traj: &Trajectory,
     sensor: &Sensor,
     targets: &[SyncTarget],
     result: &SyncResult,
     o: &SyncOptions,
-    t0_s: f64,
-    period_s: f64,
+    (t0_s, period_s): (f64, f64),
     attitude_latency_s: Option<f64>,
 ) -> Result<nalgebra::DMatrix<f64>> {
     let data = refined_data(targets, &result.sightings);

@@ -10,11 +10,9 @@
 //! `sum r' C^-1 r`; the covariance of theta is `(sum J' C^-1 J)^-1`, which is also the
 //! Cramer-Rao bound of this Gaussian model when evaluated at the true theta.
 
-use super::geometry::{
-    attitude_cov_b, nav_sigma, position_cov_e, return_point, TargetReturn,
-};
-use crate::georef::{r_b_to_e, Sensor};
+use super::geometry::{attitude_cov_b, nav_sigma, position_cov_e, return_point, TargetReturn};
 use crate::geo::rotations::skew;
+use crate::georef::{r_b_to_e, Sensor};
 use crate::timing::Mirror;
 use crate::trajectory::Trajectory;
 use crate::{Error, Result};
@@ -175,7 +173,9 @@ pub(crate) fn invert_scaled(h: &DMatrix<f64>) -> Result<DMatrix<f64>> {
 
 /// `H` scaled to unit diagonal, and the scale `1 / sqrt(diag H)`.
 pub(crate) fn scaled(h: &DMatrix<f64>) -> (DMatrix<f64>, DVector<f64>) {
-    let s = h.diagonal().map(|v| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 });
+    let s = h
+        .diagonal()
+        .map(|v| if v > 0.0 { 1.0 / v.sqrt() } else { 0.0 });
     let d = DMatrix::from_diagonal(&s);
     (&d * h * &d, s)
 }

@@ -53,7 +53,11 @@ pub fn run(
         direction: c.time.direction,
     };
     let t0 = sy.t0_approx_s.or(c.time.t0_s).ok_or_else(|| {
-        Error::config("pipeline", "sync.t0_approx_s", "an approximate t0 is needed")
+        Error::config(
+            "pipeline",
+            "sync.t0_approx_s",
+            "an approximate t0 is needed",
+        )
     })?;
     let mut o = SyncOptions::new(t0, sy.period_approx_s.unwrap_or(c.time.period_s), mirror);
     o.window_s = sy.window_s;
@@ -69,9 +73,8 @@ pub fn run(
         .iter()
         .enumerate()
         .map(|(k, (original, file))| {
-            let result = estimate(traj, &sensor, file, &targets, &o).map_err(|e| {
-                Error::Invalid(format!("sync of {}: {e}", original.display()))
-            })?;
+            let result = estimate(traj, &sensor, file, &targets, &o)
+                .map_err(|e| Error::Invalid(format!("sync of {}: {e}", original.display())))?;
             let plots = if sy.plots {
                 super::plots::write_plots(&result, plot_dir, &format!("{plot_stem}_sync{k}"))?
             } else {

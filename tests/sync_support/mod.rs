@@ -66,9 +66,9 @@ pub fn survey(sc: &Scenario, dir: &Path) -> Survey {
     for (t, l) in targets.iter_mut().zip(&world.landmarks) {
         assert_eq!(t.id, l.id);
         let plate = world.scene.objects.iter().find_map(|ob| match ob.shape {
-            Shape::Box { centre, r_l_to_enu, .. }
-                if ob.class == Class::SyncTarget && (centre - l.enu).norm() < 0.05 =>
-            {
+            Shape::Box {
+                centre, r_l_to_enu, ..
+            } if ob.class == Class::SyncTarget && (centre - l.enu).norm() < 0.05 => {
                 Some(r_l_to_enu.column(1).into_owned())
             }
             _ => None,
