@@ -37,7 +37,10 @@ fn bench_encode(c: &mut Criterion) {
     group.throughput(Throughput::Elements(N as u64));
     group.sample_size(20);
     group.bench_function("encode_points_1e6_4xf32", |b| {
-        b.iter(|| encode_points(&points, &layout, &mut out).unwrap())
+        b.iter(|| {
+            out.clear();
+            encode_points(&points, &layout, &mut out).unwrap()
+        })
     });
     group.finish();
 }

@@ -6,15 +6,18 @@
 //! Conventions (frames, signs, time model) follow `../shared/SPEC.md`, restated in `docs/`.
 #![forbid(unsafe_op_in_unsafe_fn)]
 
+pub mod calib;
+pub mod demo;
 pub mod error;
 pub mod geo;
-pub mod io;
-pub mod plot;
-
-pub use error::{Error, Result};
 pub mod georef;
+pub mod io;
 pub mod pipeline;
+pub mod plot;
+pub mod progress;
 pub mod sim;
 pub mod sync;
 pub mod timing;
 pub mod trajectory;
+
+pub use error::{Error, Result};

@@ -234,11 +234,14 @@ impl NavCursor<'_> {
             self.b = Some(NavSample::from_sbet(&sbet.record(i + 1)));
             self.idx = i;
         }
-        let (a, b) = (self.a.expect("set above"), self.b.expect("set above"));
+        let (a, b) = (
+            self.a.as_ref().expect("set above"),
+            self.b.as_ref().expect("set above"),
+        );
         if b.t_s - a.t_s > self.traj.opts.max_gap_s {
             return Err(NavGap::TrajectoryGap);
         }
-        Ok(interpolate(&a, &b, t))
+        Ok(interpolate(a, b, t))
     }
 }
 

@@ -157,3 +157,40 @@ fn every_command_has_examples_in_its_help() {
         );
     }
 }
+
+#[test]
+fn calibrate_latency_end_to_end_from_a_simulated_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/calib_sim_table.toml");
+    let o = kinescan(
+        dir.path(),
+        &[
+            "--quiet",
+            "calibrate",
+            "simulate-table",
+            cfg.to_str().unwrap(),
+            "--out",
+            "table",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let o = kinescan(
+        dir.path(),
+        &[
+            "calibrate",
+            "latency",
+            "table/calib_latency.toml",
+            "--out",
+            "res",
+        ],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (tau, sigma) = (
+        v["latency_s"].as_f64().unwrap(),
+        v["sigma_latency_s"].as_f64().unwrap(),
+    );
+    // The scenario injects 4.21 ms; 4 sigma covers a seed's scatter.
+    assert!((tau - 0.00421).abs() < 4.0 * sigma, "{tau} +- {sigma}");
+    assert!(dir.path().join("res/latency.json").exists());
+}

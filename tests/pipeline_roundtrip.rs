@@ -277,6 +277,28 @@ fn every_return_is_written_or_rejected_with_a_reason() {
         input.counter_jumps.min(10)
     );
 
+    // With `return_index`, every written point names its raw record: the good ones.
+    let set = ["output.return_index_dimension=true".to_string()];
+    run(
+        &config::load(&f.dir.path().join("bad.toml"), &set).unwrap(),
+        &quiet(2),
+    )
+    .unwrap();
+    let pts = read_las(&f.dir.path().join("out/cloud.las"));
+    let idx: Vec<usize> = pts
+        .iter()
+        .map(|p| f64::from_le_bytes(p.extra_bytes[4..12].try_into().unwrap()) as usize)
+        .collect();
+    let good: Vec<usize> = (0..t.read as usize)
+        .filter(|&i| {
+            let r = kinescan::io::profiles::ProfileFile::open(&f.dir.path().join("bad.ksprof"))
+                .unwrap()
+                .get(i);
+            r.range_m > 0.0 && r.range_m < 200.0 && i + 1 < t.read as usize
+        })
+        .collect();
+    assert_eq!(idx, good);
+
     // Strict mode names the file and the first bad record.
     let strict = ["output.strictness=\"fail\"".to_string()];
     let err = run(

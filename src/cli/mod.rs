@@ -1,7 +1,9 @@
 //! Command-line parsing and dispatch. `anyhow` lives here only; the library returns
 //! `kinescan::Error`.
 
+mod calib_cmds;
 mod pipeline_cmds;
+mod sim_cmds;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -23,6 +25,9 @@ enum Command {
     Validate(pipeline_cmds::ValidateArgs),
     Import(pipeline_cmds::ImportArgs),
     Info(pipeline_cmds::InfoArgs),
+    Calibrate(calib_cmds::CalibrateArgs),
+    Simulate(sim_cmds::SimulateArgs),
+    Demo(sim_cmds::DemoArgs),
 }
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
@@ -33,6 +38,9 @@ pub fn run() -> ExitCode {
         Command::Validate(a) => pipeline_cmds::validate(a),
         Command::Import(a) => pipeline_cmds::import(a, cli.quiet),
         Command::Info(a) => pipeline_cmds::info(a),
+        Command::Calibrate(a) => calib_cmds::calibrate(a, cli.quiet),
+        Command::Simulate(a) => sim_cmds::simulate(a, cli.quiet),
+        Command::Demo(a) => sim_cmds::demo(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,10 +4,15 @@
 //! UTM uses the Krüger n-series of the transverse Mercator projection to sixth order in the
 //! third flattening `n` (Karney 2011, "Transverse Mercator with an accuracy of a few
 //! nanometres", J. Geodesy 85(8), eqs. 7-11, 35-36), evaluated with Clenshaw summation in complex
-//! arithmetic. Truncation error is below 1 nm within 4000 km of the central meridian; against
-//! PROJ (pyproj) the forward and inverse agree to < 1e-6 m for points up to 6 deg of longitude
-//! from the central meridian (`tests/geodesy.rs`). The series coefficients are compile-time
-//! constants.
+//! arithmetic. Karney reports this series good to a few nanometres out to ~4000 km from the
+//! central meridian. Tested: against PROJ (pyproj) forward and inverse agree to < 1e-6 m
+//! (measured <= 1.1e-7 m, the oracle's printed resolution) for points up to 6 deg of longitude
+//! from the central meridian, latitudes to 80 deg (`tests/geodesy.rs`); the coefficient
+//! polynomials are checked against exact conformal/rectifying latitudes (unit tests).
+//!
+//! Speed: the coefficients are compile-time constants and ECEF -> UTM avoids ECEF -> geodetic
+//! trigonometry (Newton on tan(lat), the longitude by rotating x, y): about 115 ns per point on
+//! the project machine, against about 135 ns for [`ecef_to_geodetic`] alone.
 //!
 //! Zones are the plain 6-degree zones: [`MapFrame::utm_for`] does **not** apply the Norway (32V)
 //! or Svalbard (31X-37X) exceptions; name the zone explicitly to use them.
@@ -289,9 +294,9 @@ impl MapFrame {
     /// UTM is a `PROJCS` and ECEF a `GEOCCS` carrying `AUTHORITY["EPSG",..]`, so PROJ/pyproj
     /// identify them (`CRS.from_wkt(w).to_epsg()` gives [`MapFrame::epsg`]; checked by
     /// `tests/oracle/make_geodesy_oracle.py --check`). The UTM WKT is horizontal; Z in the file
-    /// is WGS84 ellipsoidal height. Local ENU is an engineering `LOCAL_CS` with axes
-    /// East, North, Up (m) whose name and datum state the WGS84 origin in degrees
-    /// (9 decimals, < 0.1 mm) and metres; no EPSG code exists for it.
+    /// is WGS84 ellipsoidal height. Local ENU is an engineering `LOCAL_CS` (local datum type
+    /// 32767, as PROJ writes it) with axes East, North, Up (m) whose name and datum state the
+    /// WGS84 origin in degrees (9 decimals, < 0.1 mm) and metres; it has no EPSG code.
     pub fn wkt(&self) -> String {
         const DATUM: &str = r#"DATUM["WGS_1984",SPHEROID["WGS 84",6378137,298.257223563,AUTHORITY["EPSG","7030"]],AUTHORITY["EPSG","6326"]],PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]]"#;
         const METRE: &str = r#"UNIT["metre",1,AUTHORITY["EPSG","9001"]]"#;
@@ -324,7 +329,7 @@ impl MapFrame {
             ),
             MapFrame::LocalEnu { .. } => format!(
                 concat!(
-                    r#"LOCAL_CS["{name}",LOCAL_DATUM["{name}",0],{metre},"#,
+                    r#"LOCAL_CS["{name}",LOCAL_DATUM["{name}",32767],{metre},"#,
                     r#"AXIS["Easting",EAST],AXIS["Northing",NORTH],AXIS["Up",UP]]"#
                 ),
                 name = self,

@@ -376,7 +376,7 @@ pub fn stats_of_records(bytes: &[u8], layout: &PointLayout) -> ChunkStats {
 
 /// Serialises `points` into format 6 records with the layout's extra bytes.
 ///
-/// `out` is cleared, then holds `points.len() * layout.record_len()` bytes (its contents are
+/// Appends `points.len() * layout.record_len()` bytes to `out` (what it appended is
 /// unspecified after an error). Coordinates are stored as `round((v - offset) / scale)`;
 /// GPS time as `gps_time + layout.time().shift_s()`; extra values cast to their type.
 /// Pure and allocation-free per point: call it from many threads on separate chunks.
@@ -392,11 +392,11 @@ pub fn encode_points(
     let record_len = layout.record_len;
     let shift_s = layout.time.shift_s();
     let mut stats = ChunkStats::empty(record_len);
-    out.clear();
-    out.resize(points.len() * record_len, 0);
+    let start = out.len();
+    out.resize(start + points.len() * record_len, 0);
     for (i, (p, rec)) in points
         .iter()
-        .zip(out.chunks_exact_mut(record_len))
+        .zip(out[start..].chunks_exact_mut(record_len))
         .enumerate()
     {
         let counts = [
@@ -584,6 +584,7 @@ impl LasWriter {
     /// Encodes and appends `points` (convenience for callers without a parallel encoder).
     pub fn write_points(&mut self, points: &[LasPoint]) -> Result<()> {
         let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.clear();
         let stats = encode_points(points, &self.config.layout, &mut scratch)
             .map_err(|e| Error::bad_file(&self.path, e.to_string()))?;
         let result = self.write_encoded(&scratch, &stats);

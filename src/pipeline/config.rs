@@ -302,6 +302,10 @@ pub struct OutputConfig {
     /// Write the measured range (m) as an extra dimension `range`.
     #[serde(default = "yes")]
     pub range_dimension: bool,
+    /// Write each point's 0-based record index in its profile file as the extra dimension
+    /// `return_index` (float64, exact to 2^53), to trace a point back to its raw return.
+    #[serde(default)]
+    pub return_index_dimension: bool,
 }
 
 fn one_u16() -> u16 {

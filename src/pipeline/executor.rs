@@ -5,7 +5,7 @@ use super::config::{FrameConfig, LoadedPipeline, Strictness, TimeModel};
 use super::report::{
     FileRecord, InputReport, OutputReport, RejectReason, ReturnCounts, RunReport, StageTiming,
 };
-use super::sink::{LasSink, SinkSettings};
+use super::sink::{ExtraSlots, LasSink, SinkSettings};
 use crate::geo::local::LocalProjection;
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::wrap_pi;
@@ -55,7 +55,7 @@ struct Georeferencer<'a> {
     max_range_m: f64,
     frame: MapFrame,
     point_source_id: u16,
-    range_dimension: bool,
+    slots: ExtraSlots,
 }
 
 /// The result of one chunk of returns: its LAS records, already encoded.
@@ -140,8 +140,8 @@ impl Georeferencer<'_> {
             point_source_id: self.point_source_id,
             ..LasPoint::default()
         };
-        if self.range_dimension {
-            p.extra[0] = r.range_m;
+        if let Some(k) = self.slots.range {
+            p.extra[k] = r.range_m;
         }
         Ok((p, t))
     }
@@ -183,7 +183,6 @@ impl Georeferencer<'_> {
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
         let mut local = None;
         let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
-        let mut scratch = Vec::new();
         let mut prev: Option<u32> = None;
         let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
         for i in range {
@@ -200,10 +199,13 @@ impl Georeferencer<'_> {
             prev = Some(r.profile);
             out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
             match self.point(&r, &mut cursor, &mut local) {
-                Ok((p, t)) => {
+                Ok((mut p, t)) => {
+                    if let Some(k) = self.slots.return_index {
+                        p.extra[k] = i as f64;
+                    }
                     batch.push(p);
                     if batch.len() == ENCODE_BATCH {
-                        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+                        encode_into(&mut batch, layout, &mut out)?;
                     }
                     t_min = t_min.min(t);
                     t_max = t_max.max(t);
@@ -214,7 +216,7 @@ impl Georeferencer<'_> {
                 }
             }
         }
-        encode_into(&mut batch, layout, &mut scratch, &mut out)?;
+        encode_into(&mut batch, layout, &mut out)?;
         if t_min <= t_max {
             out.time_span_s = Some((t_min, t_max));
         }
@@ -230,20 +232,12 @@ const ENCODE_BATCH: usize = 1024;
 const RECENTRE_M: f64 = 100.0;
 
 /// Encodes and empties `batch`, appending its records and stats to `out`.
-fn encode_into(
-    batch: &mut Vec<LasPoint>,
-    layout: &PointLayout,
-    scratch: &mut Vec<u8>,
-    out: &mut ChunkOut,
-) -> Result<()> {
-    let stats = encode_points(batch, layout, scratch)?;
-    out.records.extend_from_slice(scratch);
+fn encode_into(batch: &mut Vec<LasPoint>, layout: &PointLayout, out: &mut ChunkOut) -> Result<()> {
+    let stats = encode_points(batch, layout, &mut out.records)?;
     out.stats.merge(&stats);
     batch.clear();
     Ok(())
 }
-
-impl Georeferencer<'_> {}
 
 /// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
 pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
@@ -373,8 +367,9 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     })
 }
 
-/// The mapping frame: UTM zone from the first trajectory record unless configured.
-fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
+/// The output mapping frame: UTM zone and hemisphere from the first trajectory record unless
+/// configured.
+pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
     let first = traj.sbet().record(0);
     match *f {
         FrameConfig::Utm { zone, north } => {
@@ -458,25 +453,24 @@ fn georeferencer<'a>(
         max_range_m: s.max_range_m,
         frame: *frame,
         point_source_id,
-        range_dimension: c.output.range_dimension,
+        slots: ExtraSlots::for_config(c).0,
     })
 }
 
 fn progress_bar(enabled: bool, total: u64) -> indicatif::ProgressBar {
-    use std::io::IsTerminal;
-    if !enabled || !std::io::stderr().is_terminal() {
-        return indicatif::ProgressBar::hidden();
+    if enabled {
+        crate::progress::bar(total, "georeferencing returns")
+    } else {
+        indicatif::ProgressBar::hidden()
     }
-    let bar = indicatif::ProgressBar::new(total);
-    let style = indicatif::ProgressStyle::with_template(
-        "{spinner} georeferencing [{bar:40}] {human_pos}/{human_len} returns, {per_sec}, eta {eta}",
-    )
-    .expect("static template")
-    .progress_chars("=> ");
-    bar.set_style(style);
-    bar
 }
 
+/// A batch of chunk results, in input order.
+type Batch = Vec<(std::ops::Range<usize>, Result<ChunkOut>)>;
+
+/// Georeferences one profile file. Batches of chunks are computed in parallel on the pool
+/// while a writer thread absorbs the previous batch (counts, checks, LAS, hash), so writing
+/// overlaps computing; results are absorbed strictly in input order.
 #[allow(clippy::too_many_arguments)]
 fn process_file(
     g: &Georeferencer,
@@ -490,73 +484,129 @@ fn process_file(
     let n = file.len();
     let chunk = opts.chunk_returns.max(1);
     let batch = chunk * rayon::current_num_threads() * 2;
-    let mut hasher = Sha256::new();
-    hasher.update(file.header_bytes());
-    let mut counts = ReturnCounts::default();
-    let mut tracker = CounterTracker::default();
-    let mut span: Option<(f64, f64)> = None;
-    for batch_start in (0..n).step_by(batch) {
-        let batch_end = (batch_start + batch).min(n);
-        let ranges: Vec<_> = (batch_start..batch_end)
-            .step_by(chunk)
-            .map(|s| s..(s + chunk).min(batch_end))
-            .collect();
-        let layout = sink.layout();
-        let outs: Vec<Result<ChunkOut>> = ranges
-            .par_iter()
-            .map(|r| g.chunk(file, r.clone(), layout))
-            .collect();
-        for (r, out) in ranges.iter().zip(outs) {
-            let out = out.map_err(|e| {
-                let at = format!("records {}..{}", r.start, r.end);
-                Error::bad_record(file.path(), at, e.to_string())
-            })?;
-            tracker.absorb(file.path(), r.start, &out)?;
-            if strictness == Strictness::Fail {
-                if let Some((i, reason)) = out.first_reject {
-                    let msg = format!("{} (output.strictness = \"fail\")", reason.describe());
-                    return Err(Error::bad_record(file.path(), format!("record {i}"), msg));
+    let layout = sink.layout().clone();
+    let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
+    let mut acc = FileAccumulator::new(file, strictness);
+    std::thread::scope(|scope| {
+        let writer = scope.spawn(|| -> Result<()> {
+            for batch in rx {
+                for (r, out) in batch {
+                    acc.absorb(r, out, sink, bar)?;
                 }
             }
-            for (k, reason) in RejectReason::ALL.iter().enumerate() {
-                if out.counts[k] > 0 {
-                    *counts.rejected.entry(*reason).or_default() += out.counts[k];
-                }
+            Ok(())
+        });
+        for batch_start in (0..n).step_by(batch) {
+            let batch_end = (batch_start + batch).min(n);
+            let ranges: Vec<_> = (batch_start..batch_end)
+                .step_by(chunk)
+                .map(|s| s..(s + chunk).min(batch_end))
+                .collect();
+            let outs: Batch = ranges
+                .into_par_iter()
+                .map(|r| (r.clone(), g.chunk(file, r, &layout)))
+                .collect();
+            if tx.send(outs).is_err() {
+                break; // the writer stopped on an error, reported below
             }
-            counts.read += r.len() as u64;
-            counts.written += out.stats.count;
-            if let Some((a, b)) = out.time_span_s {
-                span = Some(span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
-            }
-            sink.write(&out.records, &out.stats)?;
-            hasher.update(file.record_bytes(r.clone()));
-            file.release(r.clone());
-            bar.inc(r.len() as u64);
+        }
+        drop(tx);
+        writer.join().expect("writer thread panicked")
+    })?;
+    acc.finish(original, g.point_source_id)
+}
+
+/// What the writer side learns about one profile file.
+struct FileAccumulator<'f> {
+    file: &'f ProfileFile,
+    strictness: Strictness,
+    hasher: Sha256,
+    counts: ReturnCounts,
+    tracker: CounterTracker,
+    span: Option<(f64, f64)>,
+}
+
+impl<'f> FileAccumulator<'f> {
+    fn new(file: &'f ProfileFile, strictness: Strictness) -> Self {
+        let mut hasher = Sha256::new();
+        hasher.update(file.header_bytes());
+        FileAccumulator {
+            file,
+            strictness,
+            hasher,
+            counts: ReturnCounts::default(),
+            tracker: CounterTracker::default(),
+            span: None,
         }
     }
-    debug_assert_eq!(counts.read, counts.written + counts.rejected_total());
-    let digest = hasher.finalize();
-    let bytes = std::fs::metadata(file.path())
-        .map_err(|e| Error::io(file.path(), e))?
-        .len();
-    let mut record = FileRecord {
-        role: "profiles".into(),
-        path: file.path().into(),
-        bytes,
-        sha256: super::report::hex(&digest),
-    };
-    if original != file.path() {
-        record = FileRecord::of("profiles", original)?;
+
+    fn absorb(
+        &mut self,
+        r: std::ops::Range<usize>,
+        out: Result<ChunkOut>,
+        sink: &mut LasSink,
+        bar: &indicatif::ProgressBar,
+    ) -> Result<()> {
+        let path = self.file.path();
+        let out = out.map_err(|e| {
+            Error::bad_record(
+                path,
+                format!("records {}..{}", r.start, r.end),
+                e.to_string(),
+            )
+        })?;
+        self.tracker.absorb(path, r.start, &out)?;
+        if self.strictness == Strictness::Fail {
+            if let Some((i, reason)) = out.first_reject {
+                let msg = format!("{} (output.strictness = \"fail\")", reason.describe());
+                return Err(Error::bad_record(path, format!("record {i}"), msg));
+            }
+        }
+        for (k, reason) in RejectReason::ALL.iter().enumerate() {
+            if out.counts[k] > 0 {
+                *self.counts.rejected.entry(*reason).or_default() += out.counts[k];
+            }
+        }
+        self.counts.read += r.len() as u64;
+        self.counts.written += out.stats.count;
+        if let Some((a, b)) = out.time_span_s {
+            self.span = Some(self.span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
+        }
+        sink.write(&out.records, &out.stats)?;
+        self.hasher.update(self.file.record_bytes(r.clone()));
+        self.file.release(r.clone());
+        bar.inc(r.len() as u64);
+        Ok(())
     }
-    Ok(InputReport {
-        file: record,
-        point_source_id: g.point_source_id,
-        counts,
-        profile_range: tracker.range,
-        counter_jumps: tracker.jumps,
-        counter_jump_examples: tracker.examples,
-        time_span_s: span,
-    })
+
+    fn finish(self, original: &Path, point_source_id: u16) -> Result<InputReport> {
+        let c = self.counts;
+        debug_assert_eq!(c.read, c.written + c.rejected_total());
+        let path = self.file.path();
+        let record = if original != path {
+            FileRecord::of("profiles", original)?
+        } else {
+            let bytes = std::fs::metadata(path)
+                .map_err(|e| Error::io(path, e))?
+                .len();
+            let sha256 = super::report::hex(&self.hasher.finalize());
+            FileRecord {
+                role: "profiles".into(),
+                path: path.into(),
+                bytes,
+                sha256,
+            }
+        };
+        Ok(InputReport {
+            file: record,
+            point_source_id,
+            counts: c,
+            profile_range: self.tracker.range,
+            counter_jumps: self.tracker.jumps,
+            counter_jump_examples: self.tracker.examples,
+            time_span_s: self.span,
+        })
+    }
 }
 
 /// Profile-counter continuity across chunks.

@@ -44,7 +44,12 @@ impl SinkSettings {
             Some(gps_week) => GpsTimeConvention::AdjustedStandard { gps_week },
             None => GpsTimeConvention::WeekSeconds,
         };
-        let layout = PointLayout::with_scale([c.output.scale_m; 3], offset, time, extra_dims(c))?;
+        let layout = PointLayout::with_scale(
+            [c.output.scale_m; 3],
+            offset,
+            time,
+            ExtraSlots::for_config(c).1,
+        )?;
         let (day, year) = creation_date(c.inputs.gps_week, first.time_s);
         let config = LasWriterConfig {
             layout,
@@ -63,13 +68,46 @@ impl SinkSettings {
     }
 }
 
-/// Extra dimensions, in record order (indices into `LasPoint::extra`).
-pub fn extra_dims(c: &PipelineConfig) -> Vec<ExtraDim> {
-    let mut dims = Vec::new();
-    if c.output.range_dimension {
-        dims.push(ExtraDim::f32("range", "measured range rho (m)"));
+/// Which extra dimensions a run writes, and their slots in `LasPoint::extra`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ExtraSlots {
+    /// Slot of `range` (m).
+    pub range: Option<usize>,
+    /// Slot of `return_index`.
+    pub return_index: Option<usize>,
+}
+
+impl ExtraSlots {
+    /// Slots and descriptors, in record order, for a pipeline.
+    pub fn for_config(c: &PipelineConfig) -> (Self, Vec<ExtraDim>) {
+        let mut dims = Vec::new();
+        let mut slot = |dim: ExtraDim| {
+            dims.push(dim);
+            Some(dims.len() - 1)
+        };
+        let range = c
+            .output
+            .range_dimension
+            .then(|| slot(ExtraDim::f32("range", "measured range rho (m)")))
+            .flatten();
+        let return_index = c
+            .output
+            .return_index_dimension
+            .then(|| {
+                slot(ExtraDim::f64(
+                    "return_index",
+                    "record index in profile file",
+                ))
+            })
+            .flatten();
+        (
+            ExtraSlots {
+                range,
+                return_index,
+            },
+            dims,
+        )
     }
-    dims
 }
 
 /// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",

@@ -134,11 +134,11 @@ impl TruthGen {
             self.cfg.roll_per_lateral_acc_deg.to_radians() * a_lat,
             self.cfg.pitch_per_longitudinal_acc_deg.to_radians() * m.a_mps2,
         ];
-        for i in 0..2 {
-            self.lag[i] = if self.k == 0 {
-                target[i]
+        for (lag, target) in self.lag.iter_mut().zip(target) {
+            *lag = if self.k == 0 {
+                target
             } else {
-                self.lag[i] + w * (target[i] - self.lag[i])
+                *lag + w * (target - *lag)
             };
         }
         let amp = (m.v_mps / self.v_top).min(1.0);

@@ -83,6 +83,9 @@ impl Effects {
         if let Some([a, p]) = self.mirror_wobble_s {
             c.range("effects.mirror_wobble_s[0]", a, -0.1, 0.1);
             c.pos("effects.mirror_wobble_s[1]", p);
+            c.test("effects.mirror_wobble_s", (std::f64::consts::TAU * a / p).abs() < 0.1, || {
+                format!("amplitude {a} s over period {p} s would make the scanner clock run backwards")
+            });
         }
     }
 

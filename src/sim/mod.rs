@@ -205,9 +205,7 @@ fn scan(
     let mut na = n_first;
     while na < n_end {
         let nb = (na + block).min(n_end);
-        let t_lo = model
-            .true_time(na, model.beta_of(0))
-            .min(model.true_time(na, 0.0));
+        let t_lo = model.true_time(na, model.beta_of(0));
         let t_hi = model.true_time(nb - 1, model.beta_of(model.points_per_profile() - 1));
         let k_lo = (((t_lo - sc.start_time_s) * rate).floor() as u64).saturating_sub(2);
         let k_hi = ((t_hi - sc.start_time_s) * rate).ceil() as u64 + 2;

@@ -88,7 +88,7 @@ pub fn read_truth_points(path: &Path) -> Result<Vec<[f64; 3]>> {
 /// Nominal survey sigma written for control points and patches (m); the truth is exact.
 const SURVEY_SIGMA_M: f64 = 0.001;
 
-/// Writes control points (every landmark) and reference patches (facades with at least
+/// Writes control points (every landmark) and reference patches (street facades with at least
 /// `output.patch_min_returns` returns, ground squares along the part of the route driven
 /// while scanning).
 pub(crate) fn write_references(
@@ -133,7 +133,9 @@ pub(crate) fn write_references(
         if obj.class != super::scene::Class::Building {
             continue;
         }
-        for face in 0..4usize {
+        // Street-facing facades only (local -y, face 2): building ends may hide behind a
+        // neighbour a few decimetres away and make poor references.
+        for face in [2usize] {
             if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
                 continue;
             }

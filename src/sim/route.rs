@@ -138,10 +138,18 @@ impl Route {
                 a_mps2: 0.0,
             };
         }
+        if t >= self.arrive[i + 1] {
+            // Standing at a stop, waiting to depart.
+            return Motion {
+                s_m: ((i + 1) as f64 * DS_M).min(self.length_m),
+                v_mps: self.v[i + 1],
+                a_mps2: 0.0,
+            };
+        }
         let (v0, v1) = (self.v[i], self.v[i + 1]);
         let ds = self.step(i);
         let a = (v1 * v1 - v0 * v0) / (2.0 * ds);
-        let tau = (t - self.depart[i]).min(self.arrive[i + 1] - self.depart[i]);
+        let tau = t - self.depart[i];
         Motion {
             s_m: (i as f64 * DS_M + v0 * tau + 0.5 * a * tau * tau).min(self.length_m),
             v_mps: (v0 + a * tau).max(0.0),
@@ -157,10 +165,15 @@ impl Route {
         let n = (self.length_m / DS_M).ceil() as usize + 1;
         let mut v: Vec<f64> = (0..n)
             .map(|i| {
-                let k = self
-                    .at((i as f64 * DS_M).min(self.length_m - 1e-9))
-                    .curvature
-                    .abs();
+                // Largest curvature on the steps either side: speed is limited before an arc
+                // starts within the next step.
+                let k = [-1.0, 0.0, 1.0]
+                    .map(|d| {
+                        let s = ((i as f64 + d) * DS_M).clamp(0.0, self.length_m - 1e-9);
+                        self.at(s).curvature.abs()
+                    })
+                    .into_iter()
+                    .fold(0.0, f64::max);
                 let corner = if k > 0.0 {
                     (cfg.max_lateral_acc_mps2 / k).sqrt()
                 } else {
@@ -174,7 +187,12 @@ impl Route {
         v[n - 1] = 0.0;
         dwell[0] = cfg.lap_start_dwell_s;
         for s in &cfg.stops {
-            let i = ((s.at_m / DS_M).round() as usize).clamp(1, n - 2);
+            // Never next to the lap ends or another stop: two standing grid points in a row
+            // would take forever to drive between. Such stops merge.
+            let mut i = ((s.at_m / DS_M).round() as usize).clamp(2, n - 3);
+            if let Some(j) = [i - 1, i + 1].into_iter().find(|&j| v[j] == 0.0) {
+                i = j;
+            }
             v[i] = 0.0;
             dwell[i] += s.dwell_s;
         }

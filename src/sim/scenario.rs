@@ -395,6 +395,18 @@ impl Scenario {
         self.scanner.check(&mut c);
         self.nav_errors.check(&mut c, self.vehicle.nav_rate_hz);
         self.effects.check(&mut c);
+        if let Some(q) = self.effects.clock_drift_quadratic_per_s {
+            c.test(
+                "effects.clock_drift_quadratic_per_s",
+                (2.0 * q * self.duration_s).abs() < 0.1,
+                || {
+                    format!(
+                        "{q} 1/s over duration_s {} s would make the scanner clock run backwards",
+                        self.duration_s
+                    )
+                },
+            );
+        }
         let s = &self.scanner;
         let scan_s = self.duration_s - s.t0_offset_s - s.end_margin_s;
         c.test("duration_s", scan_s > s.period_s, || {

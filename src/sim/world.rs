@@ -222,7 +222,7 @@ impl Builder<'_> {
         }
         let n_v = c.trees_per_side;
         for k in 0..n_v {
-            self.tree(at(len * (k as f64 + 0.75) / n_v as f64, 2.0), curb);
+            self.tree(at(len * (k as f64 + 0.75) / n_v as f64, 1.2), curb);
         }
     }
 
@@ -310,8 +310,8 @@ impl Builder<'_> {
         );
         self.push(
             Shape::Sphere {
-                centre: Vector3::new(p[0], p[1], g + 4.5),
-                radius_m: 2.0,
+                centre: Vector3::new(p[0], p[1], g + 4.0),
+                radius_m: 1.5,
             },
             Class::Tree,
         );

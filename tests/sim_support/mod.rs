@@ -2,12 +2,12 @@
 //! (georeferencing with the configured parameters read back from truth.json).
 #![allow(dead_code)]
 
-use kinescan::georef::{georeference, point_s, Sensor};
+use kinescan::georef::{beam_e, georeference, point_s, r_b_to_e, Sensor};
 use kinescan::io::profiles::ProfileFile;
 use kinescan::sim::{read_truth_points, simulate_scenario, Scenario, SimOptions};
 use kinescan::timing::{Mirror, MirrorDirection, ScannerClock};
 use kinescan::trajectory::{PoseCursor, Trajectory, TrajectoryOptions};
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use std::path::Path;
 
 /// A 14 s drive from standing along the first street of the city block and round its first
@@ -99,6 +99,12 @@ pub struct Pair {
     pub x_e: Vector3<f64>,
     /// True point (ECEF, m).
     pub truth_e: Vector3<f64>,
+    /// Pipeline's beam origin (ECEF, m) and unit direction.
+    pub beam_e: (Vector3<f64>, Vector3<f64>),
+    /// Pipeline's IMU position (ECEF, m) and body-to-ECEF rotation.
+    pub imu_e: Vector3<f64>,
+    /// Pipeline's `R_b^e`.
+    pub r_b_e: Matrix3<f64>,
 }
 
 /// Georeferences every valid return of `dir` as the pipeline does (configured parameters,
@@ -138,6 +144,9 @@ pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
             &point_s(&sensor, r.range_m, sensor.alpha0_rad, r.beta_rad),
         );
         out.push(Pair {
+            beam_e: beam_e(&pose, &sensor, sensor.alpha0_rad, r.beta_rad),
+            imu_e: pose.nav.r_e_m,
+            r_b_e: r_b_to_e(&pose),
             profile: r.profile,
             beta_rad: r.beta_rad,
             t_s: t,

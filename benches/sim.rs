@@ -1,0 +1,87 @@
+//! Simulator throughput and memory: the survey-day scenario at two durations, returns/s with
+//! 1 and 2 threads and peak RSS (VmHWM) of each run, each run in its own process.
+//!
+//! Output goes to a temporary directory in `KINESCAN_SIM_BENCH_DIR`, else `/dev/shm` when it
+//! exists (generation speed, not the disk's), else the system temp dir. CPU seconds (user +
+//! system) are printed beside wall-clock time: on a shared machine they show the work done.
+//!
+//! `cargo bench --bench sim`; `KINESCAN_SIM_BENCH_S="20,80"` sets the two durations (s).
+
+use kinescan::sim::{simulate, SimOptions};
+use std::path::Path;
+use std::process::Command;
+
+fn peak_rss_mib() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/status").unwrap_or_default();
+    s.lines()
+        .find_map(|l| l.strip_prefix("VmHWM:"))
+        .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<f64>().ok())
+        .map_or(f64::NAN, |kb| kb / 1024.0)
+}
+
+/// User + system CPU seconds of this process (from /proc/self/stat, 100 ticks/s).
+fn cpu_s() -> f64 {
+    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let f: Vec<&str> = s
+        .rsplit(')')
+        .next()
+        .unwrap_or("")
+        .split_whitespace()
+        .collect();
+    let tick = |i: usize| {
+        f.get(i)
+            .and_then(|v| v.parse::<f64>().ok())
+            .unwrap_or(f64::NAN)
+    };
+    (tick(11) + tick(12)) / 100.0
+}
+
+fn out_root() -> std::path::PathBuf {
+    match std::env::var_os("KINESCAN_SIM_BENCH_DIR") {
+        Some(d) => d.into(),
+        None if Path::new("/dev/shm").is_dir() => "/dev/shm".into(),
+        None => std::env::temp_dir(),
+    }
+}
+
+fn child(duration_s: f64, threads: usize) {
+    let dir = tempfile::tempdir_in(out_root()).unwrap();
+    let scenario = Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines/scenario_survey_day.toml");
+    let opts = SimOptions {
+        threads: Some(threads),
+        duration_s: Some(duration_s),
+        ..Default::default()
+    };
+    let s = simulate(&scenario, dir.path(), &opts).unwrap();
+    println!(
+        "duration {duration_s:>6.0} s  threads {threads}  returns {:>11}  wall {:>7.2} s  {:>6.2} M returns/s  CPU {:>7.2} s ({:>5.2} M returns per CPU s)  peak RSS {:>6.1} MiB",
+        s.returns,
+        s.elapsed_s,
+        s.returns as f64 / s.elapsed_s / 1e6,
+        cpu_s(),
+        s.returns as f64 / cpu_s() / 1e6,
+        peak_rss_mib()
+    );
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if let Some(i) = args.iter().position(|a| a == "--child") {
+        child(args[i + 1].parse().unwrap(), args[i + 2].parse().unwrap());
+        return;
+    }
+    let durations: Vec<f64> = std::env::var("KINESCAN_SIM_BENCH_S")
+        .unwrap_or_else(|_| "20,80".into())
+        .split(',')
+        .map(|v| v.trim().parse().unwrap())
+        .collect();
+    let exe = std::env::current_exe().unwrap();
+    let runs = [(durations[0], 1), (durations[0], 2), (durations[1], 2)];
+    for (d, t) in runs {
+        let status = Command::new(&exe)
+            .args(["--child", &d.to_string(), &t.to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
+}

@@ -1,0 +1,177 @@
+//! Files of the calibration commands: TOML configs, the CSV tables a lab records, atomic output.
+//!
+//! Formats (documented for users in `docs/calibration.md`):
+//! - scanner returns: SPEC 6 profile CSV `profile,beta_rad,range_m,intensity[,alpha_rad][,time_s]`;
+//!   the latency calibration needs `time_s` (GPS time of the return, s).
+//! - table passes: `pass,t_start_s,t_end_s,table_rate_deg_s` (signed rate about the table axis).
+//! - IMU attitude stream: `time_s,roll_deg,pitch_deg,heading_deg` (SPEC attitude angles).
+//! - tripod ellipse centres: `site,leg,y_s_m,z_s_m,sigma_m` (scan-plane coordinates, s frame).
+//! - tripod sites: `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,
+//!   sigma_heading_deg` (IMU attitude averaged over the static scan).
+
+use crate::{Error, Result};
+use serde::de::DeserializeOwned;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Reads and parses a TOML file. Errors name the file and the offending key (unknown keys are
+/// refused by `#[serde(deny_unknown_fields)]` on the config types).
+pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    toml::from_str(&text).map_err(|e| {
+        let key = e
+            .span()
+            .and_then(|s| text.get(s))
+            .map(|s| {
+                s.lines()
+                    .next()
+                    .unwrap_or("")
+                    .trim()
+                    .chars()
+                    .take(60)
+                    .collect::<String>()
+            })
+            .filter(|s| !s.is_empty())
+            .unwrap_or_else(|| "(document)".into());
+        Error::config(
+            path.display().to_string(),
+            key,
+            e.message().trim().to_string(),
+        )
+    })
+}
+
+/// Resolves a path from a config file relative to the config's directory.
+pub fn resolve(config_path: &Path, file: &Path) -> PathBuf {
+    if file.is_absolute() {
+        file.to_path_buf()
+    } else {
+        config_path.parent().unwrap_or(Path::new(".")).join(file)
+    }
+}
+
+/// Writes `bytes` to `path` atomically (temp file in the same directory, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(|e| Error::io(dir, e))?;
+    tmp.write_all(bytes).map_err(|e| Error::io(path, e))?;
+    tmp.persist(path).map_err(|e| Error::io(path, e.error))?;
+    Ok(())
+}
+
+/// Serialises `value` as pretty JSON into `path` atomically.
+pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
+    let text = serde_json::to_string_pretty(value)
+        .map_err(|e| Error::Invalid(format!("{}: JSON encoding: {e}", path.display())))?;
+    write_atomic(path, text.as_bytes())
+}
+
+/// A CSV table read whole: column names and rows of fields with their 1-based line numbers.
+pub struct CsvTable {
+    path: PathBuf,
+    columns: Vec<String>,
+    rows: Vec<(usize, Vec<String>)>,
+}
+
+impl CsvTable {
+    /// Reads `path`; the first line is the header. Blank lines are skipped.
+    pub fn read(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty());
+        let (_, header) = lines
+            .next()
+            .ok_or_else(|| Error::bad_file(path, "empty file"))?;
+        let columns: Vec<String> = header.split(',').map(|s| s.trim().to_string()).collect();
+        let mut rows = Vec::new();
+        for (i, line) in lines {
+            let fields: Vec<String> = line.split(',').map(|s| s.trim().to_string()).collect();
+            if fields.len() != columns.len() {
+                return Err(Error::bad_record(
+                    path,
+                    format!("line {}", i + 1),
+                    format!("{} fields, header has {}", fields.len(), columns.len()),
+                ));
+            }
+            rows.push((i + 1, fields));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            columns,
+            rows,
+        })
+    }
+
+    /// Index of column `name`, or an error naming the file and the missing column.
+    pub fn column(&self, name: &str) -> Result<usize> {
+        self.columns.iter().position(|c| c == name).ok_or_else(|| {
+            Error::bad_file(
+                &self.path,
+                format!(
+                    "missing column `{name}` (header: {})",
+                    self.columns.join(",")
+                ),
+            )
+        })
+    }
+
+    /// Index of column `name` if present.
+    pub fn optional_column(&self, name: &str) -> Option<usize> {
+        self.columns.iter().position(|c| c == name)
+    }
+
+    /// Rows with their 1-based line numbers.
+    pub fn rows(&self) -> impl Iterator<Item = (usize, &[String])> {
+        self.rows.iter().map(|(l, f)| (*l, f.as_slice()))
+    }
+
+    /// Parses field `col` of a row as a finite f64; empty gives `None`.
+    pub fn opt_f64(&self, line: usize, fields: &[String], col: usize) -> Result<Option<f64>> {
+        let s = &fields[col];
+        if s.is_empty() {
+            return Ok(None);
+        }
+        match s.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(Some(v)),
+            _ => Err(self.bad(
+                line,
+                format!("`{}` = `{s}` is not a finite number", self.columns[col]),
+            )),
+        }
+    }
+
+    /// Parses field `col` as a required finite f64.
+    pub fn f64(&self, line: usize, fields: &[String], col: usize) -> Result<f64> {
+        self.opt_f64(line, fields, col)?
+            .ok_or_else(|| self.bad(line, format!("`{}` is empty", self.columns[col])))
+    }
+
+    /// Parses field `col` as an unsigned integer.
+    pub fn u64(&self, line: usize, fields: &[String], col: usize) -> Result<u64> {
+        fields[col].parse::<u64>().map_err(|_| {
+            self.bad(
+                line,
+                format!(
+                    "`{}` = `{}` is not an integer",
+                    self.columns[col], fields[col]
+                ),
+            )
+        })
+    }
+
+    /// A [`Error::BadRecord`] for `line` of this file.
+    pub fn bad(&self, line: usize, problem: impl Into<String>) -> Error {
+        Error::bad_record(&self.path, format!("line {line}"), problem)
+    }
+
+    /// The file read.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}

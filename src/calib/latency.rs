@@ -1,0 +1,654 @@
+//! Latency calibration on a rotating table (paper 000, sections 2.2-4; paper 002, section 2).
+//!
+//! The scanner and IMU turn together on a table at known angular rates `+omega` and `-omega`
+//! (rad/s, from the table's own log, about the unit axis `a_n` fixed in the NED frame `n`, whose
+//! origin is the table's centre of rotation). Each return (time `t`) is placed in `n` with the
+//! IMU attitude evaluated at `t + tau_applied` (SPEC 2):
+//! `x_n = R_b^n(t + tau_applied) * (l_b + R_s^b * (rho + K) * u_s(alpha, beta))`.
+//! A residual latency `dtau = tau - tau_applied` rotates every return by `-omega * dtau` about
+//! `a_n`, so the fitted sphere centre of each direction is shifted:
+//! `c_pm = x - dtau * (omega_pm a_n) x x` (paper eq. 3 with the paper's `dt` = SPEC `tau`).
+//! With `d = c_minus - c_plus` and `g = (omega_plus - omega_minus) a_n x xbar` the least-squares
+//! solution of eq. 3 in 3D (any axis) is `dtau = g.d / |g|^2`, variance
+//! `g^T (Cov_plus + Cov_minus) g / |g|^4`. Paper eq. 4 takes norms (`|d| / |g|`), which loses the
+//! sign and is biased upwards by noise; the projection keeps the sign and is unbiased, and equals
+//! eq. 4 when `d` is parallel to `g`. Speeds are combined by inverse-variance weights.
+
+use super::files::{self, CsvTable};
+use super::sphere::{fit_sphere_robust, SphereFit, SphereRadius};
+use crate::geo::rotations::{q_b_to_n, r_zyx};
+use crate::{Error, Result};
+use nalgebra::{Matrix3, UnitQuaternion, Vector3};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One scanner return with its time tag (SPEC 6 profile CSV with `time_s`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimedReturn {
+    /// Profile counter.
+    pub profile: u64,
+    /// GPS time of the return (s).
+    pub time_s: f64,
+    /// Out-of-plane angle `alpha` (rad).
+    pub alpha_rad: f64,
+    /// Mirror angle `beta` (rad).
+    pub beta_rad: f64,
+    /// Measured range `rho` (m), without the zero error.
+    pub range_m: f64,
+}
+
+/// One pass of the table at constant rate, from the table's log.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TablePass {
+    /// Start (GPS s) of the constant-rate part.
+    pub t_start_s: f64,
+    /// End of the pass (GPS s).
+    pub t_end_s: f64,
+    /// Signed rate about the table axis (rad/s), right-handed.
+    pub rate_rad_s: f64,
+}
+
+/// One IMU attitude record: stamp (GPS s) and SPEC angles roll, pitch, true heading (rad).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AttitudeSample {
+    /// Time stamp (s); the physical attitude is that of `time_s - tau`.
+    pub time_s: f64,
+    /// Roll (rad).
+    pub roll_rad: f64,
+    /// Pitch (rad).
+    pub pitch_rad: f64,
+    /// True heading (rad).
+    pub heading_rad: f64,
+}
+
+/// Everything a latency run records.
+#[derive(Debug, Clone, Default)]
+pub struct LatencyData {
+    /// Scanner returns (all of them: selection is by the sphere gate).
+    pub returns: Vec<TimedReturn>,
+    /// Table passes, sorted by time, not overlapping.
+    pub passes: Vec<TablePass>,
+    /// IMU attitude stream, strictly increasing stamps.
+    pub attitude: Vec<AttitudeSample>,
+}
+
+/// Sensor and target setup of a latency run (SI, SPEC frames).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LatencySetup {
+    /// Boresight `R_s^b` (scanner to body).
+    pub r_s_to_b: Matrix3<f64>,
+    /// Scanner optical centre relative to the table's rotation centre, in `b` (m).
+    pub lever_arm_b_m: Vector3<f64>,
+    /// Range zero error `K` (m).
+    pub range_zero_error_m: f64,
+    /// Unit table axis in `n`.
+    pub table_axis_n: Vector3<f64>,
+    /// Sphere radius, known or free.
+    pub sphere_radius: SphereRadius,
+    /// Latency already applied to the attitude stream (s); the result is this plus the residual.
+    pub applied_latency_s: f64,
+    /// Approximate sphere centre in `n` (m) and gate (m): returns farther than `radius + gate`
+    /// (known radius) or `gate` (free radius) from it are not sphere returns. `None`: every
+    /// return is a sphere return.
+    pub sphere_gate_n_m: Option<(Vector3<f64>, f64)>,
+}
+
+/// Result for one table speed (a row of the paper's Table 2).
+#[derive(Debug, Clone, Serialize)]
+pub struct SpeedResult {
+    /// Table speed |omega| (deg/s).
+    pub rate_deg_s: f64,
+    /// Returns used in the final sphere fit, + direction.
+    pub n_used_plus: usize,
+    /// Rejected returns, + direction.
+    pub n_rejected_plus: usize,
+    /// Returns used, - direction.
+    pub n_used_minus: usize,
+    /// Rejected returns, - direction.
+    pub n_rejected_minus: usize,
+    /// Fitted centres in `n` (m).
+    pub centre_plus_n_m: [f64; 3],
+    /// Fitted centre, - direction.
+    pub centre_minus_n_m: [f64; 3],
+    /// RMS per-axis centre sigma `sqrt(trace(Cov)/3)` (m), + and - direction.
+    pub sigma_centre_plus_m: f64,
+    /// As above, - direction.
+    pub sigma_centre_minus_m: f64,
+    /// Fitted radius (m) of the + and - sphere.
+    pub radius_plus_m: f64,
+    /// Fitted radius, - direction.
+    pub radius_minus_m: f64,
+    /// Centre shift `|c_minus - c_plus|` (m).
+    pub shift_m: f64,
+    /// Latency (s): applied + residual from this speed.
+    pub latency_s: f64,
+    /// 1-sigma of `latency_s` (s) from the centre covariances.
+    pub sigma_latency_s: f64,
+    /// The paper's eq. 4 (norm ratio, unsigned) for comparison (s), plus the applied latency.
+    pub latency_eq4_s: f64,
+    /// Gauss-Newton iterations of the two final fits.
+    pub iterations: [usize; 2],
+}
+
+/// Latency calibration result: what a pipeline (`latency_s`) and the uncertainty model
+/// (`sigma_latency_s`) take (SPEC 2 sign: attitude evaluated at `t + latency_s`).
+#[derive(Debug, Clone, Serialize)]
+pub struct LatencyReport {
+    /// Total IMU-to-scanner latency `tau` (s).
+    pub latency_s: f64,
+    /// 1-sigma of `latency_s` (s).
+    pub sigma_latency_s: f64,
+    /// Latency that was applied when placing the returns (s).
+    pub applied_latency_s: f64,
+    /// Chi-square of the per-speed estimates about the weighted mean.
+    pub chi2: f64,
+    /// Its degrees of freedom (speeds - 1).
+    pub dof: usize,
+    /// Per-speed results, increasing speed.
+    pub speeds: Vec<SpeedResult>,
+    /// Returns read (missing returns, range 0, are not counted).
+    pub n_returns: usize,
+    /// Returns outside any table pass or attitude coverage.
+    pub n_outside_passes: usize,
+    /// Returns outside the sphere gate.
+    pub n_outside_gate: usize,
+}
+
+/// Attitude stream interpolated by slerp (SPEC 4).
+struct AttitudeStream {
+    t: Vec<f64>,
+    q: Vec<UnitQuaternion<f64>>,
+}
+
+impl AttitudeStream {
+    fn new(samples: &[AttitudeSample]) -> Result<Self> {
+        if samples.len() < 2 || samples.windows(2).any(|w| w[1].time_s <= w[0].time_s) {
+            return Err(Error::Invalid(
+                "attitude stream: need >= 2 records with strictly increasing time".into(),
+            ));
+        }
+        Ok(Self {
+            t: samples.iter().map(|s| s.time_s).collect(),
+            q: samples
+                .iter()
+                .map(|s| q_b_to_n(s.roll_rad, s.pitch_rad, s.heading_rad))
+                .collect(),
+        })
+    }
+
+    /// `R_b^n` at stamp `t`, `None` outside the stream.
+    fn at(&self, t: f64) -> Option<Matrix3<f64>> {
+        let k = self.t.partition_point(|&x| x <= t);
+        if k == 0 || k == self.t.len() && t > self.t[k - 1] {
+            return None;
+        }
+        let k = k.min(self.t.len() - 1);
+        let (t0, t1) = (self.t[k - 1], self.t[k]);
+        let f = (t - t0) / (t1 - t0);
+        Some(
+            *self.q[k - 1]
+                .slerp(&self.q[k], f)
+                .to_rotation_matrix()
+                .matrix(),
+        )
+    }
+}
+
+/// Index of the pass containing `t`.
+fn pass_at(passes: &[TablePass], t: f64) -> Option<usize> {
+    let k = passes.partition_point(|p| p.t_start_s <= t);
+    (k > 0 && t <= passes[k - 1].t_end_s).then(|| k - 1)
+}
+
+/// Sphere candidates per speed key (mdeg/s) and direction: points in `n` and pass rates.
+type Groups = BTreeMap<i64, [(Vec<Vector3<f64>>, f64, usize); 2]>;
+
+/// Estimates the latency `tau` (s) from a rotating-table run (module doc for the model).
+///
+/// Errors: a zero table rate, a speed without both directions, fewer than 20 returns on a
+/// sphere, a degenerate geometry (sphere on the table axis).
+pub fn estimate_latency(data: &LatencyData, setup: &LatencySetup) -> Result<LatencyReport> {
+    let stream = AttitudeStream::new(&data.attitude)?;
+    for (i, p) in data.passes.iter().enumerate() {
+        if p.rate_rad_s.abs() < 1e-9 || !p.rate_rad_s.is_finite() {
+            return Err(Error::Invalid(format!("table pass {i}: zero table speed")));
+        }
+        if i > 0 && p.t_start_s < data.passes[i - 1].t_end_s {
+            return Err(Error::Invalid(format!(
+                "table pass {i}: overlaps the previous pass"
+            )));
+        }
+    }
+    let mut groups: Groups = BTreeMap::new();
+    let (mut n_outside_passes, mut n_outside_gate) = (0, 0);
+    for r in &data.returns {
+        let Some(pi) = pass_at(&data.passes, r.time_s) else {
+            n_outside_passes += 1;
+            continue;
+        };
+        let Some(r_b_n) = stream.at(r.time_s + setup.applied_latency_s) else {
+            n_outside_passes += 1;
+            continue;
+        };
+        let x_n = point_n(setup, &r_b_n, r);
+        if !in_gate(setup, &x_n) {
+            n_outside_gate += 1;
+            continue;
+        }
+        let rate = data.passes[pi].rate_rad_s;
+        let key = (rate.abs().to_degrees() * 1000.0).round() as i64;
+        let slot = &mut groups.entry(key).or_default()[usize::from(rate < 0.0)];
+        slot.0.push(x_n);
+        slot.1 += rate;
+        slot.2 += 1;
+    }
+    let speeds = groups
+        .into_iter()
+        .map(|(key, g)| speed_result(setup, key, g))
+        .collect::<Result<Vec<_>>>()?;
+    combine(
+        setup,
+        speeds,
+        data.returns.len(),
+        n_outside_passes,
+        n_outside_gate,
+    )
+}
+
+/// `x_n = R_b^n (l_b + R_s^b (rho + K) u_s(alpha, beta))` (m).
+fn point_n(setup: &LatencySetup, r_b_n: &Matrix3<f64>, r: &TimedReturn) -> Vector3<f64> {
+    let x_s = (r.range_m + setup.range_zero_error_m) * beam_s(r.alpha_rad, r.beta_rad);
+    r_b_n * (setup.lever_arm_b_m + setup.r_s_to_b * x_s)
+}
+
+/// SPEC beam direction `u_s(alpha, beta)`.
+pub fn beam_s(alpha_rad: f64, beta_rad: f64) -> Vector3<f64> {
+    let (sa, ca) = alpha_rad.sin_cos();
+    let (sb, cb) = beta_rad.sin_cos();
+    Vector3::new(sa, -ca * sb, ca * cb)
+}
+
+fn in_gate(setup: &LatencySetup, x_n: &Vector3<f64>) -> bool {
+    let Some((c, gate)) = setup.sphere_gate_n_m else {
+        return true;
+    };
+    let r = match setup.sphere_radius {
+        SphereRadius::Known(r) => r,
+        SphereRadius::Free => 0.0,
+    };
+    (x_n - c).norm() <= r + gate
+}
+
+fn speed_result(
+    setup: &LatencySetup,
+    key: i64,
+    [plus, minus]: [(Vec<Vector3<f64>>, f64, usize); 2],
+) -> Result<SpeedResult> {
+    let rate_deg_s = key as f64 / 1000.0;
+    if plus.2 == 0 || minus.2 == 0 {
+        return Err(Error::Invalid(format!(
+            "table speed {rate_deg_s} deg/s: returns on the sphere in only one direction"
+        )));
+    }
+    let fit = |pts: &[Vector3<f64>], dir: &str| {
+        fit_sphere_robust(pts, setup.sphere_radius).map_err(|e| {
+            Error::Invalid(format!(
+                "table speed {rate_deg_s} deg/s, {dir} direction: {e}"
+            ))
+        })
+    };
+    let (fp, fm) = (fit(&plus.0, "+")?, fit(&minus.0, "-")?);
+    let (w_plus, w_minus) = (plus.1 / plus.2 as f64, minus.1 / minus.2 as f64);
+    let (dtau, var) = residual_latency(setup, &fp, &fm, w_plus, w_minus)?;
+    let d = fm.centre_m - fp.centre_m;
+    let g = (w_plus - w_minus)
+        * setup
+            .table_axis_n
+            .cross(&((fp.centre_m + fm.centre_m) / 2.0));
+    let rms = |f: &SphereFit| (f.cov_centre_m2.trace() / 3.0).sqrt();
+    Ok(SpeedResult {
+        rate_deg_s,
+        n_used_plus: fp.n_used,
+        n_rejected_plus: fp.n_rejected,
+        n_used_minus: fm.n_used,
+        n_rejected_minus: fm.n_rejected,
+        centre_plus_n_m: fp.centre_m.into(),
+        centre_minus_n_m: fm.centre_m.into(),
+        sigma_centre_plus_m: rms(&fp),
+        sigma_centre_minus_m: rms(&fm),
+        radius_plus_m: fp.radius_m,
+        radius_minus_m: fm.radius_m,
+        shift_m: d.norm(),
+        latency_s: setup.applied_latency_s + dtau,
+        sigma_latency_s: var.sqrt(),
+        latency_eq4_s: setup.applied_latency_s + d.norm() / g.norm(),
+        iterations: [fp.iterations, fm.iterations],
+    })
+}
+
+/// Residual latency `dtau` (s) and its variance (s^2) from the two fitted spheres and the
+/// signed table rates (rad/s) of the two directions (module doc).
+pub fn residual_latency(
+    setup: &LatencySetup,
+    plus: &SphereFit,
+    minus: &SphereFit,
+    rate_plus_rad_s: f64,
+    rate_minus_rad_s: f64,
+) -> Result<(f64, f64)> {
+    let xbar = (plus.centre_m + minus.centre_m) / 2.0;
+    let g = (rate_plus_rad_s - rate_minus_rad_s) * setup.table_axis_n.cross(&xbar);
+    let g2 = g.norm_squared();
+    if g2 < 1e-12 {
+        return Err(Error::Numerical {
+            what: "latency".into(),
+            problem: "sphere centre on the table axis: rotation does not move it".into(),
+        });
+    }
+    let d = minus.centre_m - plus.centre_m;
+    let var = (g.transpose() * (plus.cov_centre_m2 + minus.cov_centre_m2) * g)[0] / (g2 * g2);
+    Ok((g.dot(&d) / g2, var))
+}
+
+fn combine(
+    setup: &LatencySetup,
+    speeds: Vec<SpeedResult>,
+    n_returns: usize,
+    n_outside_passes: usize,
+    n_outside_gate: usize,
+) -> Result<LatencyReport> {
+    if speeds.is_empty() {
+        return Err(Error::Invalid(
+            "latency: no sphere returns inside any table pass".into(),
+        ));
+    }
+    let w: Vec<f64> = speeds
+        .iter()
+        .map(|s| 1.0 / (s.sigma_latency_s * s.sigma_latency_s))
+        .collect();
+    let sw: f64 = w.iter().sum();
+    let tau = speeds
+        .iter()
+        .zip(&w)
+        .map(|(s, w)| w * s.latency_s)
+        .sum::<f64>()
+        / sw;
+    let chi2 = speeds
+        .iter()
+        .zip(&w)
+        .map(|(s, w)| w * (s.latency_s - tau).powi(2))
+        .sum();
+    Ok(LatencyReport {
+        latency_s: tau,
+        sigma_latency_s: sw.sqrt().recip(),
+        applied_latency_s: setup.applied_latency_s,
+        chi2,
+        dof: speeds.len() - 1,
+        speeds,
+        n_returns,
+        n_outside_passes,
+        n_outside_gate,
+    })
+}
+
+/// `calibrate latency` configuration (TOML). Paths are relative to the config file.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LatencyConfig {
+    /// Input files.
+    pub files: LatencyFiles,
+    /// Table.
+    pub table: TableConfig,
+    /// Sphere target.
+    pub sphere: SphereConfig,
+    /// Scanner mounting and processing.
+    #[serde(default)]
+    pub scanner: ScannerConfig,
+}
+
+/// Input files of a latency run.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LatencyFiles {
+    /// Scanner returns, SPEC profile CSV with `time_s`.
+    pub returns: PathBuf,
+    /// Table passes CSV.
+    pub passes: PathBuf,
+    /// IMU attitude stream CSV.
+    pub attitude: PathBuf,
+}
+
+/// Table geometry.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableConfig {
+    /// Table axis in NED (normalised on reading); positive rates turn right-handed about it.
+    pub axis_n: [f64; 3],
+}
+
+/// Sphere target.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SphereConfig {
+    /// Certified radius (m); omit to estimate it.
+    pub radius_m: Option<f64>,
+    /// Approximate centre in NED about the table centre (m); omit to use every return.
+    pub approx_centre_n_m: Option<[f64; 3]>,
+    /// Returns farther than radius + gate (known radius) or gate (free radius) from the
+    /// approximate centre are ignored (m).
+    #[serde(default = "default_gate")]
+    pub gate_m: f64,
+}
+
+fn default_gate() -> f64 {
+    0.05
+}
+
+/// Scanner mounting and processing settings (SPEC 3).
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScannerConfig {
+    /// Boresight `[bx, by, bz]` (deg), `R_s^b = Rz(bz) Ry(by) Rx(bx)`.
+    #[serde(default)]
+    pub boresight_deg: [f64; 3],
+    /// Optical centre relative to the table's rotation centre, body frame (m).
+    #[serde(default)]
+    pub lever_arm_b_m: [f64; 3],
+    /// Range zero error `K` (m).
+    #[serde(default)]
+    pub range_zero_error_m: f64,
+    /// `alpha` for returns without an `alpha_rad` column (deg).
+    #[serde(default)]
+    pub alpha0_deg: f64,
+    /// Latency already applied when placing returns (ms).
+    #[serde(default)]
+    pub applied_latency_ms: f64,
+}
+
+impl LatencyConfig {
+    /// The [`LatencySetup`] in SI, validated; `src` names the config in errors.
+    pub fn setup(&self, src: &str) -> Result<LatencySetup> {
+        let axis = Vector3::from(self.table.axis_n);
+        if !super::positive(axis.norm()) {
+            return Err(Error::config(
+                src,
+                "table.axis_n",
+                "must be a non-zero vector",
+            ));
+        }
+        let sphere_radius = match self.sphere.radius_m {
+            Some(r) if r > 0.0 => SphereRadius::Known(r),
+            Some(_) => return Err(Error::config(src, "sphere.radius_m", "must be > 0")),
+            None => SphereRadius::Free,
+        };
+        if !super::positive(self.sphere.gate_m) {
+            return Err(Error::config(src, "sphere.gate_m", "must be > 0"));
+        }
+        let [bx, by, bz] = self.scanner.boresight_deg.map(f64::to_radians);
+        Ok(LatencySetup {
+            r_s_to_b: r_zyx(bx, by, bz),
+            lever_arm_b_m: self.scanner.lever_arm_b_m.into(),
+            range_zero_error_m: self.scanner.range_zero_error_m,
+            table_axis_n: axis.normalize(),
+            sphere_radius,
+            applied_latency_s: self.scanner.applied_latency_ms * 1e-3,
+            sphere_gate_n_m: self
+                .sphere
+                .approx_centre_n_m
+                .map(|c| (c.into(), self.sphere.gate_m)),
+        })
+    }
+}
+
+/// Reads scanner returns (SPEC 6 profile CSV); `time_s` is required. Missing returns (range 0
+/// or empty) are skipped. `alpha0_rad` is used where there is no `alpha_rad` column.
+pub fn read_returns(path: &Path, alpha0_rad: f64) -> Result<Vec<TimedReturn>> {
+    let t = CsvTable::read(path)?;
+    let (cp, cb, cr, ct) = (
+        t.column("profile")?,
+        t.column("beta_rad")?,
+        t.column("range_m")?,
+        t.column("time_s")?,
+    );
+    t.column("intensity")?;
+    let ca = t.optional_column("alpha_rad");
+    let mut out = Vec::new();
+    for (line, f) in t.rows() {
+        let Some(range_m) = t.opt_f64(line, f, cr)?.filter(|&r| r != 0.0) else {
+            continue;
+        };
+        if range_m < 0.0 {
+            return Err(t.bad(line, "negative range"));
+        }
+        let alpha_rad = match ca {
+            Some(c) => t.opt_f64(line, f, c)?.unwrap_or(alpha0_rad),
+            None => alpha0_rad,
+        };
+        out.push(TimedReturn {
+            profile: t.u64(line, f, cp)?,
+            time_s: t.f64(line, f, ct)?,
+            alpha_rad,
+            beta_rad: t.f64(line, f, cb)?,
+            range_m,
+        });
+    }
+    Ok(out)
+}
+
+/// Reads the table log `pass,t_start_s,t_end_s,table_rate_deg_s`. A zero rate, an empty or
+/// reversed interval, or passes out of order are errors naming the line.
+pub fn read_passes(path: &Path) -> Result<Vec<TablePass>> {
+    let t = CsvTable::read(path)?;
+    let (c0, c1, cr) = (
+        t.column("t_start_s")?,
+        t.column("t_end_s")?,
+        t.column("table_rate_deg_s")?,
+    );
+    t.column("pass")?;
+    let mut out: Vec<TablePass> = Vec::new();
+    for (line, f) in t.rows() {
+        let p = TablePass {
+            t_start_s: t.f64(line, f, c0)?,
+            t_end_s: t.f64(line, f, c1)?,
+            rate_rad_s: t.f64(line, f, cr)?.to_radians(),
+        };
+        if p.rate_rad_s == 0.0 {
+            return Err(t.bad(line, "zero table speed: latency needs the table turning"));
+        }
+        if p.t_end_s <= p.t_start_s {
+            return Err(t.bad(line, "t_end_s must be after t_start_s"));
+        }
+        if out.last().is_some_and(|q| p.t_start_s < q.t_end_s) {
+            return Err(t.bad(line, "pass starts before the previous one ends"));
+        }
+        out.push(p);
+    }
+    if out.is_empty() {
+        return Err(Error::bad_file(path, "no table passes"));
+    }
+    Ok(out)
+}
+
+/// Reads the IMU attitude stream `time_s,roll_deg,pitch_deg,heading_deg`.
+pub fn read_attitude(path: &Path) -> Result<Vec<AttitudeSample>> {
+    let t = CsvTable::read(path)?;
+    let cols = [
+        t.column("time_s")?,
+        t.column("roll_deg")?,
+        t.column("pitch_deg")?,
+        t.column("heading_deg")?,
+    ];
+    let mut out: Vec<AttitudeSample> = Vec::new();
+    for (line, f) in t.rows() {
+        let mut v = [0.0; 4];
+        for (k, &c) in cols.iter().enumerate() {
+            v[k] = t.f64(line, f, c)?;
+        }
+        let s = AttitudeSample {
+            time_s: v[0],
+            roll_rad: v[1].to_radians(),
+            pitch_rad: v[2].to_radians(),
+            heading_rad: v[3].to_radians(),
+        };
+        if out.last().is_some_and(|q| s.time_s <= q.time_s) {
+            return Err(t.bad(line, "time_s not strictly increasing"));
+        }
+        out.push(s);
+    }
+    if out.len() < 2 {
+        return Err(Error::bad_file(path, "fewer than 2 attitude records"));
+    }
+    Ok(out)
+}
+
+/// `kinescan calibrate latency`: reads the TOML config at `config_path` and the files it names,
+/// estimates the latency and writes `latency.json` (the [`LatencyReport`]) and
+/// `latency_by_speed.csv` (the Table-2-like table) atomically into `out_dir`.
+pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<LatencyReport> {
+    let cfg: LatencyConfig = files::load_toml(config_path)?;
+    let setup = cfg.setup(&config_path.display().to_string())?;
+    let data = LatencyData {
+        returns: read_returns(
+            &files::resolve(config_path, &cfg.files.returns),
+            cfg.scanner.alpha0_deg.to_radians(),
+        )?,
+        passes: read_passes(&files::resolve(config_path, &cfg.files.passes))?,
+        attitude: read_attitude(&files::resolve(config_path, &cfg.files.attitude))?,
+    };
+    let report = estimate_latency(&data, &setup)?;
+    files::write_json(&out_dir.join("latency.json"), &report)?;
+    files::write_atomic(
+        &out_dir.join("latency_by_speed.csv"),
+        speed_table_csv(&report).as_bytes(),
+    )?;
+    Ok(report)
+}
+
+/// The per-speed table (paper Table 2 layout, one row per speed, plus the combined row).
+pub fn speed_table_csv(report: &LatencyReport) -> String {
+    let mut s = String::from(
+        "rate_deg_s,latency_ms,sigma_latency_ms,sigma_centre_plus_mm,sigma_centre_minus_mm,\
+         shift_mm,n_used_plus,n_used_minus,n_rejected_plus,n_rejected_minus\n",
+    );
+    for r in &report.speeds {
+        s += &format!(
+            "{},{:.4},{:.4},{:.5},{:.5},{:.4},{},{},{},{}\n",
+            r.rate_deg_s,
+            r.latency_s * 1e3,
+            r.sigma_latency_s * 1e3,
+            r.sigma_centre_plus_m * 1e3,
+            r.sigma_centre_minus_m * 1e3,
+            r.shift_m * 1e3,
+            r.n_used_plus,
+            r.n_used_minus,
+            r.n_rejected_plus,
+            r.n_rejected_minus
+        );
+    }
+    s += &format!(
+        "combined,{:.4},{:.4},,,,,,,\n",
+        report.latency_s * 1e3,
+        report.sigma_latency_s * 1e3
+    );
+    s
+}

@@ -1,0 +1,146 @@
+//! The built-in demo: simulate a city block with ground truth, georeference it with the
+//! pipeline exactly as a user would, and compare every written point with its true position.
+
+use crate::geo::projection::MapFrame;
+use crate::io::atomic::write_atomic;
+use crate::pipeline::config;
+use crate::pipeline::executor::{map_frame, run, RunOptions};
+use crate::pipeline::report::RunReport;
+use crate::sim::{self, files, SimOptions};
+use crate::trajectory::{Trajectory, TrajectoryOptions};
+use crate::{Error, Result};
+use nalgebra::Vector3;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The demo scenario (also `pipelines/scenario_city_block.toml`).
+pub const SCENARIO: &str = include_str!("../pipelines/scenario_city_block.toml");
+/// The demo pipeline (also `pipelines/demo_city_block.toml`), run beside the `survey` folder.
+pub const PIPELINE: &str = include_str!("../pipelines/demo_city_block.toml");
+
+/// What the demo did and how good the result is.
+#[derive(Debug, Clone)]
+pub struct DemoSummary {
+    /// Simulation wall time (s).
+    pub simulate_s: f64,
+    /// The pipeline's run report.
+    pub report: RunReport,
+    /// Run report path.
+    pub report_path: PathBuf,
+    /// Points compared with the truth.
+    pub compared: u64,
+    /// 3D error against the truth: RMS, 95th percentile, maximum (m).
+    pub error_3d_m: [f64; 3],
+    /// Horizontal and vertical RMS error (m).
+    pub error_h_v_rms_m: [f64; 2],
+}
+
+/// Simulates the city block into `out/survey`, runs `out/pipeline.toml` on it and compares.
+pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Result<DemoSummary> {
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    let scenario = out.join("scenario_city_block.toml");
+    write_atomic(&scenario, SCENARIO.as_bytes())?;
+    let started = Instant::now();
+    sim::simulate(&scenario, &out.join("survey"), sim_opts)?;
+    let simulate_s = started.elapsed().as_secs_f64();
+    let pipeline = out.join("pipeline.toml");
+    write_atomic(&pipeline, PIPELINE.as_bytes())?;
+    let loaded = config::load(&pipeline, &[])?;
+    let report = run(&loaded, run_opts)?;
+    let report_path = loaded
+        .config
+        .output
+        .report
+        .clone()
+        .unwrap_or_else(|| loaded.config.output.las.with_extension("report.json"));
+    report.write(&report_path)?;
+    let traj = Trajectory::open(
+        &loaded.config.inputs.sbet,
+        None,
+        TrajectoryOptions::default(),
+    )?;
+    let frame = map_frame(&loaded.config.output.frame, &traj)?;
+    let truth = sim::read_truth_points(&out.join("survey").join(files::TRUTH_POINTS))?;
+    let las = &report
+        .outputs
+        .first()
+        .ok_or_else(|| Error::Invalid("demo wrote no LAS".into()))?
+        .path;
+    let errors = compare(las, &truth, &frame)?;
+    Ok(DemoSummary {
+        simulate_s,
+        report,
+        report_path,
+        compared: errors.len() as u64,
+        error_3d_m: stats_3d(&errors),
+        error_h_v_rms_m: rms_h_v(&errors),
+    })
+}
+
+/// Map-frame error vectors of every LAS point against the truth of its raw return, found
+/// through the `return_index` extra dimension.
+fn compare(las: &Path, truth: &[[f64; 3]], frame: &MapFrame) -> Result<Vec<Vector3<f64>>> {
+    let bad = |e: las::Error| Error::bad_file(las, e.to_string());
+    let mut reader = las::Reader::from_path(las).map_err(bad)?;
+    let mut errors = Vec::new();
+    for p in reader.read_all().map_err(bad)?.points() {
+        let p = p.map_err(bad)?;
+        // `range` (f32) precedes `return_index` (f64) in the demo's extra bytes.
+        let index = f64::from_le_bytes(p.extra_bytes[4..12].try_into().expect("8 bytes")) as usize;
+        let t = truth.get(index).ok_or_else(|| {
+            Error::bad_file(las, format!("return_index {index} beyond the truth"))
+        })?;
+        let t_m = frame.ecef_to_map(&Vector3::from(*t));
+        errors.push(Vector3::new(p.x, p.y, p.z) - t_m);
+    }
+    Ok(errors)
+}
+
+fn stats_3d(errors: &[Vector3<f64>]) -> [f64; 3] {
+    let mut norms: Vec<f64> = errors.iter().map(|e| e.norm()).collect();
+    norms.sort_by(f64::total_cmp);
+    let n = norms.len().max(1) as f64;
+    let rms = (norms.iter().map(|x| x * x).sum::<f64>() / n).sqrt();
+    let p95 = norms
+        .get(((norms.len() as f64 * 0.95) as usize).min(norms.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    [rms, p95, norms.last().copied().unwrap_or(0.0)]
+}
+
+fn rms_h_v(errors: &[Vector3<f64>]) -> [f64; 2] {
+    let n = errors.len().max(1) as f64;
+    let h = errors.iter().map(|e| e.x * e.x + e.y * e.y).sum::<f64>() / n;
+    let v = errors.iter().map(|e| e.z * e.z).sum::<f64>() / n;
+    [h.sqrt(), v.sqrt()]
+}
+
+impl fmt::Display for DemoSummary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let t = &self.report.totals;
+        let run_s: f64 = self.report.stages.iter().map(|s| s.seconds).sum();
+        writeln!(
+            f,
+            "kinescan demo: a one-minute city-block survey, simulated with ground truth"
+        )?;
+        writeln!(f, "  simulated        {:.1} s", self.simulate_s)?;
+        writeln!(f, "  georeferenced    {} returns read, {} written, {} rejected in {:.1} s ({:.1} M returns/s)", t.read, t.written, t.rejected_total(), run_s, self.report.returns_per_second / 1e6)?;
+        for (reason, n) in &t.rejected {
+            writeln!(f, "    rejected {n:>9}  {}", reason.describe())?;
+        }
+        let [rms, p95, max] = self.error_3d_m;
+        let [h, v] = self.error_h_v_rms_m;
+        writeln!(f, "  error vs truth   3D RMS {:.1} mm, 95th percentile {:.1} mm, max {:.1} mm (horizontal RMS {:.1} mm, vertical RMS {:.1} mm) over {} points", rms * 1e3, p95 * 1e3, max * 1e3, h * 1e3, v * 1e3, self.compared)?;
+        for o in &self.report.outputs {
+            writeln!(
+                f,
+                "  LAS              {} ({} points, {})",
+                o.path.display(),
+                o.points,
+                self.report.frame
+            )?;
+        }
+        write!(f, "  run report       {}", self.report_path.display())
+    }
+}

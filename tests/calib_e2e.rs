@@ -1,0 +1,141 @@
+//! End to end: the simulator scenarios in `pipelines/` write the files a lab records, and the
+//! calibration commands' library entry points run on them.
+
+use kinescan::calib::boresight::{run_boresight_calibration, BoresightConfig};
+use kinescan::calib::files::load_toml;
+use kinescan::calib::latency::{run_latency_calibration, LatencyConfig};
+use kinescan::calib::sim_table::run_table_simulation;
+use kinescan::calib::sim_tripod::run_tripod_simulation;
+use std::path::{Path, PathBuf};
+
+fn pipeline(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("pipelines")
+        .join(name)
+}
+
+fn truth(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn latency_scenario_to_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = run_table_simulation(&pipeline("calib_sim_table.toml"), dir.path()).unwrap();
+    assert!(n > 300_000, "{n} returns");
+    let r = run_latency_calibration(&dir.path().join("calib_latency.toml"), dir.path()).unwrap();
+    let tau = truth(dir.path())["latency_s"].as_f64().unwrap();
+    println!(
+        "latency {:.4} +- {:.4} ms (truth {:.4})",
+        r.latency_s * 1e3,
+        r.sigma_latency_s * 1e3,
+        tau * 1e3
+    );
+    // 4 sigma: chance exceedance p = 6e-5.
+    assert!((r.latency_s - tau).abs() < 4.0 * r.sigma_latency_s);
+    assert_eq!(r.speeds.len(), 6);
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("latency.json")).unwrap())
+            .unwrap();
+    assert_eq!(json["latency_s"].as_f64(), Some(r.latency_s));
+    let table = std::fs::read_to_string(dir.path().join("latency_by_speed.csv")).unwrap();
+    assert_eq!(table.lines().count(), 8, "header + 6 speeds + combined");
+}
+
+#[test]
+fn boresight_scenario_to_calibration() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = std::fs::read_to_string(pipeline("calib_sim_tripod.toml")).unwrap();
+    let cfg_path = dir.path().join("scenario.toml");
+    std::fs::write(
+        &cfg_path,
+        cfg.replace("monte_carlo_trials = 1000", "monte_carlo_trials = 50"),
+    )
+    .unwrap();
+    let mc = run_tripod_simulation(&cfg_path, dir.path())
+        .unwrap()
+        .unwrap();
+    assert_eq!(mc.trials, 50);
+    for f in [
+        "boresight_mc_1mm.json",
+        "boresight_mc_1mm_errors.csv",
+        "boresight_mc_1mm_histograms.csv",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+    let r =
+        run_boresight_calibration(&dir.path().join("calib_boresight.toml"), dir.path()).unwrap();
+    let t = truth(dir.path());
+    for k in 0..3 {
+        let m = t["misalignment_deg"][k].as_f64().unwrap();
+        // 4 sigma: chance exceedance p = 6e-5 per angle.
+        assert!(
+            (r.misalignment_deg[k] - m).abs() < 4.0 * r.sigma_misalignment_deg[k],
+            "angle {k}"
+        );
+    }
+    // The SPEC angles written for a pipeline compose to the estimated R_s^b (at by = -90 deg
+    // bx and bz are not unique; the matrix is).
+    let [bx, by, bz] = r.boresight_deg.map(f64::to_radians);
+    let re = kinescan::geo::rotations::r_zyx(bx, by, bz);
+    let rm = nalgebra::Matrix3::from_fn(|i, j| r.r_s_to_b[i][j]);
+    assert!((re - rm).norm() < 1e-9);
+    assert!(
+        !r.spec_angles_well_conditioned,
+        "by = -90 deg must be flagged"
+    );
+    assert!(
+        dir.path().join("boresight.json").exists()
+            && dir.path().join("boresight_sites.csv").exists()
+    );
+}
+
+#[test]
+fn shipped_configs_parse() {
+    let l: LatencyConfig = load_toml(&pipeline("calib_latency.toml")).unwrap();
+    l.setup("calib_latency.toml").unwrap();
+    let b: BoresightConfig = load_toml(&pipeline("calib_boresight.toml")).unwrap();
+    b.setup("calib_boresight.toml").unwrap();
+}
+
+#[test]
+fn unknown_key_names_key_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("bad.toml");
+    let text = std::fs::read_to_string(pipeline("calib_latency.toml")).unwrap();
+    std::fs::write(
+        &p,
+        text.replace("gate_m = 0.05", "gate_m = 0.05\nradius_mm = 100"),
+    )
+    .unwrap();
+    let e = run_latency_calibration(&p, dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("bad.toml") && e.contains("radius_mm"), "{e}");
+}
+
+#[test]
+fn cut_missing_a_leg_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = std::fs::read_to_string(pipeline("calib_sim_tripod.toml")).unwrap();
+    let cfg_path = dir.path().join("scenario.toml");
+    std::fs::write(
+        &cfg_path,
+        cfg.replace("monte_carlo_trials = 1000", "monte_carlo_trials = 0"),
+    )
+    .unwrap();
+    assert!(run_tripod_simulation(&cfg_path, dir.path())
+        .unwrap()
+        .is_none());
+    let centres = dir.path().join("tripod_centres.csv");
+    let text = std::fs::read_to_string(&centres).unwrap();
+    let kept: Vec<&str> = text.lines().filter(|l| !l.starts_with("2,3,")).collect();
+    std::fs::write(&centres, kept.join("\n")).unwrap();
+    let e = run_boresight_calibration(&dir.path().join("calib_boresight.toml"), dir.path())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("tripod_centres.csv") && e.contains("site 2") && e.contains("all three legs"),
+        "{e}"
+    );
+}

@@ -1,0 +1,93 @@
+//! Every file in `pipelines/` is exercised here, and the built-in demo runs end to end.
+
+use kinescan::calib::boresight::BoresightConfig;
+use kinescan::calib::files::load_toml;
+use kinescan::calib::latency::LatencyConfig;
+use kinescan::pipeline::executor::RunOptions;
+use kinescan::sim::{Scenario, SimOptions};
+use std::path::{Path, PathBuf};
+
+fn pipelines() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("pipelines")
+}
+
+/// Which test covers a file: a new file in pipelines/ without a test fails here.
+fn covered_by(name: &str) -> Option<&'static str> {
+    match name {
+        "demo_city_block.toml" => Some("the_demo_runs_and_matches_the_truth"),
+        n if n.starts_with("scenario_") => Some("scenarios_load (and tests/sim_*.rs run them)"),
+        "calib_latency.toml" | "calib_boresight.toml" => Some("calibration_templates_load"),
+        "calib_sim_table.toml" | "calib_sim_tripod.toml" => Some("tests/calib_e2e.rs"),
+        _ => None,
+    }
+}
+
+#[test]
+fn every_pipeline_file_is_covered() {
+    for entry in std::fs::read_dir(pipelines()).unwrap() {
+        let name = entry.unwrap().file_name().to_string_lossy().into_owned();
+        assert!(
+            covered_by(&name).is_some(),
+            "pipelines/{name} is not exercised by any test"
+        );
+    }
+}
+
+#[test]
+fn scenarios_load() {
+    for entry in std::fs::read_dir(pipelines()).unwrap() {
+        let path = entry.unwrap().path();
+        if path
+            .file_name()
+            .unwrap()
+            .to_string_lossy()
+            .starts_with("scenario_")
+        {
+            Scenario::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        }
+    }
+}
+
+#[test]
+fn calibration_templates_load() {
+    load_toml::<LatencyConfig>(&pipelines().join("calib_latency.toml")).unwrap();
+    load_toml::<BoresightConfig>(&pipelines().join("calib_boresight.toml")).unwrap();
+}
+
+#[test]
+fn the_demo_runs_and_matches_the_truth() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = RunOptions {
+        threads: Some(2),
+        progress: false,
+        ..RunOptions::default()
+    };
+    let d = kinescan::demo::run_demo(dir.path(), &SimOptions::default(), &run).unwrap();
+    let t = &d.report.totals;
+    assert_eq!(t.read, t.written + t.rejected_total());
+    assert_eq!(d.compared, t.written);
+    // The pipeline file states the simulated van's configured sensor and clock.
+    let truth: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.path().join("survey/truth.json")).unwrap())
+            .unwrap();
+    let p = &d.report.parameters;
+    assert_eq!(
+        serde_json::json!(p.sensor.lever_arm_b_m),
+        truth["configured_sensor"]["lever_arm_b_m"]
+    );
+    assert_eq!(
+        p.time.t0_s.unwrap(),
+        truth["scanner"]["t0_s"].as_f64().unwrap()
+    );
+    assert_eq!(
+        p.time.period_s,
+        truth["scanner"]["true_period_s"].as_f64().unwrap()
+    );
+    assert_eq!(p.inputs.gps_week.map(u64::from), truth["gps_week"].as_u64());
+    // Only the navigation errors are on in the demo scenario: position sigmas 15/15/25 mm and
+    // attitude 0.003/0.003/0.008 deg (<= 11 mm at the 80 m maximum range). The 3D RMS error must
+    // stay below the RSS of those, sqrt(15^2 + 15^2 + 25^2 + 11^2) = 35 mm, and be far above
+    // the georeferencing's own error (< 0.1 mm): it measures the injected errors.
+    let [rms, _, _] = d.error_3d_m;
+    assert!(rms > 0.005 && rms < 0.035, "3D RMS {rms} m");
+}
