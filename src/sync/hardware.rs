@@ -21,8 +21,9 @@ pub struct HardwareComparison {
     pub max_abs_difference_s: f64,
     /// Largest |tag - software time| / software sigma at that profile.
     pub max_normalised_difference: f64,
-    /// (profile, tag - software time (s)) on a thinned grid, for the figure.
-    pub differences: Vec<(u32, f64)>,
+    /// (profile, tag - software time (s), software sigma there (s)) on a thinned grid, for
+    /// the figure.
+    pub differences: Vec<(u32, f64, f64)>,
 }
 
 /// Per-profile tags `(n, t_n)`: the first return's `time_s` of every profile.
@@ -79,7 +80,7 @@ pub(crate) fn compare(
         max_abs = max_abs.max(d.abs());
         max_norm = max_norm.max(d.abs() / sigma);
         if i % stride == 0 {
-            differences.push((n, d));
+            differences.push((n, d, sigma));
         }
     }
     Some(HardwareComparison {

@@ -173,6 +173,8 @@ pub struct Sighting {
     pub profile: Option<u32>,
     /// Mean mirror angle of the chosen cluster (deg).
     pub beta_deg: Option<f64>,
+    /// `n_i + f(beta_i)`: where in the profile sequence the sighting lies (profiles).
+    pub profile_position: Option<f64>,
     /// Returns in the chosen cluster.
     pub returns_count: usize,
     /// Residual of the crossing time against the paper fit (s).
@@ -519,6 +521,7 @@ fn sightings(
                 candidates: cands[i].len(),
                 profile: cl.map(|k| k.profile),
                 beta_deg: cl.map(|k| k.beta_rad.to_degrees()),
+                profile_position: cl.map(|_| obs[i].nu),
                 returns_count: cl.map_or(0, |k| k.returns.len()),
                 residual_s: z.map(|z| z * obs[i].sigma_s),
                 normalised_residual: z,

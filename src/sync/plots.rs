@@ -15,8 +15,8 @@ pub fn write_plots(r: &SyncResult, dir: &Path, stem: &str) -> Result<Vec<PathBuf
     let pts = |keep: &dyn Fn(&&super::Sighting) -> bool| -> Vec<(f64, f64)> {
         r.sightings
             .iter()
-            .filter(|s| keep(s) && s.profile.is_some())
-            .map(|s| (s.profile.unwrap_or(0) as f64, s.crossing_time_s - t0))
+            .filter(|s| keep(s))
+            .filter_map(|s| Some((s.profile_position?, s.crossing_time_s - t0)))
             .collect()
     };
     let accepted = pts(&acc);
@@ -27,12 +27,12 @@ pub fn write_plots(r: &SyncResult, dir: &Path, stem: &str) -> Result<Vec<PathBuf
     let times = dir.join(format!("{stem}_times.png"));
     Plot::new(
         "Sync: plane-crossing time against sighting profile (paper fig. 4)",
-        "profile number n",
+        "n + f(beta)",
         "t - t0 (s)",
     )
     .scatter("accepted sightings", &accepted)
     .scatter("outliers", &outliers)
-    .line("t0 + T n", &line)
+    .line("t0 + T (n + f(beta))", &line)
     .save_png(&times)?;
     out.push(times);
     let res = |c: &super::ClockEstimate| -> Vec<(f64, f64)> {
@@ -40,14 +40,14 @@ pub fn write_plots(r: &SyncResult, dir: &Path, stem: &str) -> Result<Vec<PathBuf
             .iter()
             .filter(acc)
             .filter_map(|s| {
-                let n = s.profile? as f64;
-                Some((n, 1e3 * (s.crossing_time_s - c.t0_s - c.period_s * n)))
+                let nu = s.profile_position?;
+                Some((nu, 1e3 * (s.crossing_time_s - c.t0_s - c.period_s * nu)))
             })
             .collect()
     };
     let residuals = dir.join(format!("{stem}_residuals.png"));
     let mut p = Plot::new(
-        "Sync: crossing time minus t0 + T n (ms), per estimator",
+        "Sync: crossing time minus t0 + T (n + f(beta)), per estimator",
         "profile number n",
         "residual (ms)",
     )
@@ -59,17 +59,20 @@ pub fn write_plots(r: &SyncResult, dir: &Path, stem: &str) -> Result<Vec<PathBuf
     out.push(residuals);
     if let Some(h) = &r.hardware {
         let path = dir.join(format!("{stem}_hardware.png"));
-        let d: Vec<(f64, f64)> = h
-            .differences
-            .iter()
-            .map(|&(n, d)| (n as f64, 1e3 * d))
-            .collect();
+        let series = |k: f64| -> Vec<(f64, f64)> {
+            h.differences
+                .iter()
+                .map(|&(n, d, s)| (n as f64, 1e3 * (d + k * s)))
+                .collect()
+        };
         Plot::new(
             "Hardware (PPS) minus software profile times (paper fig. 6)",
             "profile number n",
             "t_hw - t_sw (ms)",
         )
-        .line("difference", &d)
+        .line("difference", &series(0.0))
+        .line("+2 sigma (software)", &series(2.0))
+        .line("-2 sigma (software)", &series(-2.0))
         .save_png(&path)?;
         out.push(path);
     }
