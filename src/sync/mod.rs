@@ -32,7 +32,7 @@ use geometry::{Crossing, TargetReturn};
 pub use hardware::HardwareComparison;
 use nalgebra::{DVector, Matrix2, Vector3};
 use paper::Obs;
-use refined::{Model, Plane};
+use refined::{Model, Plane, SightingData};
 use serde::{Deserialize, Serialize};
 
 /// Which estimate the result carries as its answer.
@@ -583,7 +583,9 @@ fn refine(
     paper: &ClockEstimate,
     o: &SyncOptions,
 ) -> Result<RefinedEstimate> {
-    let data = refined_data(targets, sightings);
+    let model = model(traj, sensor, o);
+    let theta = DVector::from_vec(vec![paper.t0_s - o.t0_approx_s, paper.period_s]);
+    let data = refined_data(&model, &theta, targets, sightings)?;
     if data.is_empty() {
         return Err(Error::Numerical {
             what: "sync refined estimator".into(),
@@ -593,8 +595,6 @@ fn refine(
                 .into(),
         });
     }
-    let model = model(traj, sensor, o);
-    let theta = DVector::from_vec(vec![paper.t0_s - o.t0_approx_s, paper.period_s]);
     let limit_s = paper.sigma_t0_s.min(o.period_approx_s);
     check_clock_constrained(&model.normal(&theta, &data)?.0, limit_s)?;
     let mut latency_note = None;
@@ -654,31 +654,37 @@ fn model<'a>(traj: &'a Trajectory, sensor: &'a Sensor, o: &SyncOptions) -> Model
     }
 }
 
-fn refined_data<'a>(
+/// The front-face returns of the accepted sightings of targets with a face normal, judged
+/// at `theta` (the paper's estimate).
+fn refined_data(
+    model: &Model,
+    theta: &DVector<f64>,
     targets: &[SyncTarget],
-    sightings: &'a [Sighting],
-) -> Vec<(&'a [TargetReturn], Plane)> {
-    sightings
+    sightings: &[Sighting],
+) -> Result<Vec<SightingData>> {
+    let mut out = Vec::new();
+    for s in sightings
         .iter()
         .filter(|s| s.status == SightingStatus::Accepted)
-        .filter_map(|s| {
-            let t = targets.iter().find(|t| t.id == s.target)?;
-            Some((
-                s.returns.as_slice(),
-                Plane {
-                    c_e: t.centre_e_m,
-                    n_e: t.normal_e?,
-                    sigma_m: t.sigma_m,
-                },
-            ))
-        })
-        .collect()
+    {
+        let Some(t) = targets.iter().find(|t| t.id == s.target) else {
+            continue;
+        };
+        let Some(n_e) = t.normal_e else { continue };
+        let plane = Plane {
+            c_e: t.centre_e_m,
+            n_e,
+            sigma_m: t.sigma_m,
+        };
+        out.push((model.front_face(theta, &s.returns, &plane)?, plane));
+    }
+    Ok(out)
 }
 
 fn finish(
     model: &Model,
     th: DVector<f64>,
-    data: &[(&[TargetReturn], Plane)],
+    data: &[SightingData],
     o: &SyncOptions,
     latency_note: Option<String>,
     limit_s: f64,
@@ -728,8 +734,12 @@ pub fn cramer_rao_bound(
     (t0_s, period_s): (f64, f64),
     attitude_latency_s: Option<f64>,
 ) -> Result<nalgebra::DMatrix<f64>> {
-    let data = refined_data(targets, &result.sightings);
     let model = model(traj, sensor, o);
+    let paper = DVector::from_vec(vec![
+        result.paper.t0_s - o.t0_approx_s,
+        result.paper.period_s,
+    ]);
+    let data = refined_data(&model, &paper, targets, &result.sightings)?;
     let mut v = vec![t0_s - o.t0_approx_s, period_s];
     v.extend(attitude_latency_s);
     let (h, _, _) = model.normal(&DVector::from_vec(v), &data)?;

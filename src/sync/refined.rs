@@ -42,6 +42,13 @@ pub(crate) struct Model<'a> {
 /// records 5 ms or more apart, so 0.1 ms differences are exact inside an interval.
 const H_S: f64 = 1e-4;
 
+/// Returns further than this many of their noise sigmas from their sighting's median residual
+/// are not on the front face.
+const EDGE_SIGMAS: f64 = 3.0;
+
+/// A sighting's returns and its target's plane.
+pub(crate) type SightingData = (Vec<TargetReturn>, Plane);
+
 impl Model<'_> {
     fn tau(&self, theta: &DVector<f64>) -> f64 {
         if theta.len() > 2 {
@@ -51,13 +58,36 @@ impl Model<'_> {
         }
     }
 
-    /// Residuals, Jacobian and residual covariance of one sighting.
+    /// The returns of a sighting within `EDGE_SIGMAS` of their own noise sigma of the
+    /// sighting's median residual at `theta`: drops hits on a plate's edges (a 2 cm deep box
+    /// face is not the surveyed front plane); Gaussian noise loses 0.3% of its returns.
+    pub fn front_face(
+        &self,
+        theta: &DVector<f64>,
+        returns: &[TargetReturn],
+        plane: &Plane,
+    ) -> Result<Vec<TargetReturn>> {
+        let (r, _, _, d) = self.sighting(theta, returns, plane)?;
+        let mut sorted: Vec<f64> = r.iter().copied().collect();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        Ok(returns
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| (r[*k] - median).abs() <= EDGE_SIGMAS * d[*k].sqrt())
+            .map(|(_, ret)| *ret)
+            .collect())
+    }
+
+    /// Residuals, Jacobian, residual covariance and independent noise variances of one
+    /// sighting.
+    #[allow(clippy::type_complexity)]
     pub fn sighting(
         &self,
         theta: &DVector<f64>,
         returns: &[TargetReturn],
         plane: &Plane,
-    ) -> Result<(DVector<f64>, DMatrix<f64>, DMatrix<f64>)> {
+    ) -> Result<(DVector<f64>, DMatrix<f64>, DMatrix<f64>, DVector<f64>)> {
         let (m, p) = (returns.len(), theta.len());
         let tau = self.tau(theta);
         let mut r = DVector::zeros(m);
@@ -103,22 +133,23 @@ impl Model<'_> {
         let s_att = DMatrix::from_iterator(3, 3, attitude_cov_b(&s).iter().copied());
         let mut c = &a_rows * s_att * a_rows.transpose();
         c.add_scalar_mut(common);
+        d.apply(|v| *v = v.max(1e-12));
         for k in 0..m {
-            c[(k, k)] += d[k].max(1e-12);
+            c[(k, k)] += d[k];
         }
-        Ok((r, j, c))
+        Ok((r, j, c, d))
     }
 
     /// Information matrix `sum J' C^-1 J`, gradient `sum J' C^-1 r` and `chi^2`.
     pub fn normal(
         &self,
         theta: &DVector<f64>,
-        sightings: &[(&[TargetReturn], Plane)],
+        sightings: &[SightingData],
     ) -> Result<(DMatrix<f64>, DVector<f64>, f64)> {
         let p = theta.len();
         let (mut h, mut g, mut chi2) = (DMatrix::zeros(p, p), DVector::zeros(p), 0.0);
         for (returns, plane) in sightings {
-            let (r, j, c) = self.sighting(theta, returns, plane)?;
+            let (r, j, c, _) = self.sighting(theta, returns, plane)?;
             let chol = c.cholesky().ok_or_else(|| Error::Numerical {
                 what: "sync refined estimator".into(),
                 problem: "a sighting's residual covariance is not positive definite".into(),
@@ -136,7 +167,7 @@ impl Model<'_> {
     pub fn solve(
         &self,
         mut theta: DVector<f64>,
-        sightings: &[(&[TargetReturn], Plane)],
+        sightings: &[SightingData],
     ) -> Result<(DVector<f64>, DMatrix<f64>, f64)> {
         for _ in 0..30 {
             let (h, g, _) = self.normal(&theta, sightings)?;
