@@ -57,6 +57,9 @@ pub struct SyncTarget {
     pub sigma_m: f64,
     /// Unit normal of the face (ECEF), when surveyed.
     pub normal_e: Option<Vector3<f64>>,
+    /// Half length (horizontal, in the face) and half height of the face (m), when surveyed:
+    /// returns within `EDGE_MARGIN_M` of its boundary are not used by the refined estimator.
+    pub half_size_m: Option<[f64; 2]>,
 }
 
 impl SyncTarget {
@@ -65,7 +68,8 @@ impl SyncTarget {
         points
             .iter()
             .map(|p| {
-                let normal_e = patches.iter().find(|q| q.id == p.id).map(|q| {
+                let patch = patches.iter().find(|q| q.id == p.id);
+                let normal_e = patch.map(|q| {
                     let n = Vector3::from(q.normal_enu);
                     (r_enu_to_e(q.lat_rad, q.lon_rad) * n).normalize()
                 });
@@ -78,6 +82,7 @@ impl SyncTarget {
                     }),
                     sigma_m: p.sigma_m,
                     normal_e,
+                    half_size_m: patch.map(|q| [q.half_length_m, q.half_height_m]),
                 }
             })
             .collect()
@@ -188,6 +193,9 @@ pub struct Sighting {
     /// The chosen cluster's returns (not serialised).
     #[serde(skip)]
     pub returns: Vec<TargetReturn>,
+    /// Of those, the front-face returns the refined estimator used (not serialised).
+    #[serde(skip)]
+    pub refined_returns: Vec<TargetReturn>,
 }
 
 /// An estimate of (t0, T) with its covariance.
@@ -329,7 +337,7 @@ pub fn estimate(
         .collect();
     let t_ref = o.t0_approx_s;
     let (fit, chosen, outliers) = associate(&crossings, &cands, o, t_ref, &predict)?;
-    let sightings = sightings(
+    let mut sightings = sightings(
         targets, &crossings, &cands, &chosen, &outliers, &fit, o, t_ref,
     );
     check_usable(&sightings, o)?;
@@ -341,7 +349,7 @@ pub fn estimate(
     let paper = ClockEstimate::new(t_ref + fit.x[0], fit.x[1], &fit.cov, fit.chi2, dof);
     let refined = match o.method {
         Method::Paper => None,
-        Method::Refined => Some(refine(traj, sensor, targets, &sightings, &paper, o)?),
+        Method::Refined => Some(refine(traj, sensor, targets, &mut sightings, &paper, o)?),
     };
     let clock = refined.as_ref().map_or(paper, |r| r.clock);
     let hardware = file
@@ -528,6 +536,7 @@ fn sightings(
                 sigma_s: obs[i].sigma_s,
                 status,
                 returns: cl.map_or(Vec::new(), |k| k.returns.clone()),
+                refined_returns: Vec::new(),
             }
         })
         .collect()
@@ -574,19 +583,22 @@ fn check_usable(s: &[Sighting], o: &SyncOptions) -> Result<()> {
     Ok(())
 }
 
-/// The refined estimate from the accepted sightings of targets with a surveyed face normal.
+/// The refined estimate from the accepted sightings of targets with a surveyed face normal;
+/// records in each sighting the returns it used. Two passes: from the paper's clock with
+/// returns far from their sighting's median dropped, then, at that solution (accurate to
+/// millimetres along the route), also without returns near the face's edges.
 fn refine(
     traj: &Trajectory,
     sensor: &Sensor,
     targets: &[SyncTarget],
-    sightings: &[Sighting],
+    sightings: &mut [Sighting],
     paper: &ClockEstimate,
     o: &SyncOptions,
 ) -> Result<RefinedEstimate> {
     let model = model(traj, sensor, o);
     let theta = DVector::from_vec(vec![paper.t0_s - o.t0_approx_s, paper.period_s]);
-    let data = refined_data(&model, &theta, targets, sightings)?;
-    if data.is_empty() {
+    let first = refined_data(&model, &theta, targets, sightings, false)?;
+    if first.is_empty() {
         return Err(Error::Numerical {
             what: "sync refined estimator".into(),
             problem: "no accepted sighting of a target with a surveyed face normal (give the \
@@ -596,7 +608,14 @@ fn refine(
         });
     }
     let limit_s = paper.sigma_t0_s.min(o.period_approx_s);
-    check_clock_constrained(&model.normal(&theta, &data)?.0, limit_s)?;
+    let view = |d: &[(usize, SightingData)]| d.iter().map(|x| x.1.clone()).collect::<Vec<_>>();
+    check_clock_constrained(&model.normal(&theta, &view(&first))?.0, limit_s)?;
+    let (theta, _, _) = model.solve(theta, &view(&first))?;
+    let used = refined_data(&model, &theta, targets, sightings, true)?;
+    for (i, d) in &used {
+        sightings[*i].refined_returns = d.0.clone();
+    }
+    let data = view(&used);
     let mut latency_note = None;
     if o.estimate_latency {
         // Observability first, at the starting point: an unconstrained latency would only
@@ -655,30 +674,39 @@ fn model<'a>(traj: &'a Trajectory, sensor: &'a Sensor, o: &SyncOptions) -> Model
 }
 
 /// The front-face returns of the accepted sightings of targets with a face normal, judged
-/// at `theta` (the paper's estimate).
+/// at `theta`, with their sighting's index; `edges`: also drop returns near the face's edges.
 fn refined_data(
     model: &Model,
     theta: &DVector<f64>,
     targets: &[SyncTarget],
     sightings: &[Sighting],
-) -> Result<Vec<SightingData>> {
+    edges: bool,
+) -> Result<Vec<(usize, SightingData)>> {
     let mut out = Vec::new();
-    for s in sightings
-        .iter()
-        .filter(|s| s.status == SightingStatus::Accepted)
-    {
-        let Some(t) = targets.iter().find(|t| t.id == s.target) else {
+    for (i, s) in sightings.iter().enumerate() {
+        let Some(plane) = plane_of(targets, s, edges) else {
             continue;
         };
-        let Some(n_e) = t.normal_e else { continue };
-        let plane = Plane {
-            c_e: t.centre_e_m,
-            n_e,
-            sigma_m: t.sigma_m,
-        };
-        out.push((model.front_face(theta, &s.returns, &plane)?, plane));
+        let kept = model.front_face(theta, &s.returns, &plane)?;
+        if !kept.is_empty() {
+            out.push((i, (kept, plane)));
+        }
     }
     Ok(out)
+}
+
+/// The surveyed plane of an accepted sighting's target, if it has a face normal.
+fn plane_of(targets: &[SyncTarget], s: &Sighting, edges: bool) -> Option<Plane> {
+    if s.status != SightingStatus::Accepted {
+        return None;
+    }
+    let t = targets.iter().find(|t| t.id == s.target)?;
+    Some(Plane {
+        c_e: t.centre_e_m,
+        n_e: t.normal_e?,
+        sigma_m: t.sigma_m,
+        half_size_m: if edges { t.half_size_m } else { None },
+    })
 }
 
 fn finish(
@@ -723,8 +751,8 @@ fn finish(
 
 /// Cramer-Rao bound of the refined measurement model at a given clock `(t0_s, period_s)`
 /// (and latency, which is then a parameter): the inverse information `(sum J' C^-1 J)^-1`
-/// over the accepted sightings of `result`, parameters (t0, T[, tau]). For tests against
-/// truth.
+/// over the returns the refined estimator of `result` used, parameters (t0, T[, tau]). For
+/// tests against truth.
 pub fn cramer_rao_bound(
     traj: &Trajectory,
     sensor: &Sensor,
@@ -735,11 +763,12 @@ pub fn cramer_rao_bound(
     attitude_latency_s: Option<f64>,
 ) -> Result<nalgebra::DMatrix<f64>> {
     let model = model(traj, sensor, o);
-    let paper = DVector::from_vec(vec![
-        result.paper.t0_s - o.t0_approx_s,
-        result.paper.period_s,
-    ]);
-    let data = refined_data(&model, &paper, targets, &result.sightings)?;
+    let data: Vec<SightingData> = result
+        .sightings
+        .iter()
+        .filter(|s| !s.refined_returns.is_empty())
+        .filter_map(|s| Some((s.refined_returns.clone(), plane_of(targets, s, true)?)))
+        .collect();
     let mut v = vec![t0_s - o.t0_approx_s, period_s];
     v.extend(attitude_latency_s);
     let (h, _, _) = model.normal(&DVector::from_vec(v), &data)?;

@@ -18,12 +18,32 @@ use crate::trajectory::Trajectory;
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Vector3};
 
-/// The surveyed plane of a target: centre and unit normal (ECEF), centre sigma (m).
+/// The surveyed plane of a target: centre and unit normal (ECEF), centre sigma (m) and,
+/// when returns near its edges are to be dropped, its half length and half height (m).
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct Plane {
     pub c_e: Vector3<f64>,
     pub n_e: Vector3<f64>,
     pub sigma_m: f64,
+    pub half_size_m: Option<[f64; 2]>,
+}
+
+/// Returns this close to a face's edge (in the face, m) may have hit its sides (a plate has
+/// a thickness) and are not used.
+const EDGE_MARGIN_M: f64 = 0.02;
+
+impl Plane {
+    /// Whether the in-face position of `x_e` is at least [`EDGE_MARGIN_M`] inside the edges
+    /// (always, without half sizes). In-face axes: horizontal `h = up x n`, `v = n x h`.
+    fn inside(&self, x_e: &Vector3<f64>) -> bool {
+        let Some([hl, hh]) = self.half_size_m else {
+            return true;
+        };
+        let h = self.c_e.normalize().cross(&self.n_e).normalize();
+        let v = self.n_e.cross(&h);
+        let d = x_e - self.c_e;
+        d.dot(&h).abs() <= hl - EDGE_MARGIN_M && d.dot(&v).abs() <= hh - EDGE_MARGIN_M
+    }
 }
 
 /// Everything the misfit needs besides theta.
@@ -58,20 +78,34 @@ impl Model<'_> {
         }
     }
 
-    /// The returns of a sighting within `EDGE_SIGMAS` of their own noise sigma of the
-    /// sighting's median residual at `theta`: drops hits on a plate's edges (a 2 cm deep box
-    /// face is not the surveyed front plane); Gaussian noise loses 0.3% of its returns.
+    /// The returns of a sighting inside the face's edge margin (when its size is known) and
+    /// within `EDGE_SIGMAS` of their own noise sigma of the sighting's median residual at
+    /// `theta`: drops hits on a plate's sides (a plate has a thickness; its sides are not the
+    /// surveyed front plane); Gaussian noise loses 0.3% of its returns to the second test.
     pub fn front_face(
         &self,
         theta: &DVector<f64>,
         returns: &[TargetReturn],
         plane: &Plane,
     ) -> Result<Vec<TargetReturn>> {
-        let (r, _, _, d) = self.sighting(theta, returns, plane)?;
+        let tau = self.tau(theta);
+        let mut inside = Vec::with_capacity(returns.len());
+        for ret in returns {
+            let nu = ret.profile as f64 + self.mirror.fraction(ret.beta_rad);
+            let t = self.t_ref_s + theta[0] + theta[1] * nu;
+            let x = return_point(self.traj, self.sensor, ret, t, tau)?.0;
+            if plane.inside(&x) {
+                inside.push(*ret);
+            }
+        }
+        if inside.is_empty() {
+            return Ok(inside);
+        }
+        let (r, _, _, d) = self.sighting(theta, &inside, plane)?;
         let mut sorted: Vec<f64> = r.iter().copied().collect();
         sorted.sort_by(f64::total_cmp);
         let median = sorted[sorted.len() / 2];
-        Ok(returns
+        Ok(inside
             .iter()
             .enumerate()
             .filter(|(k, _)| (r[*k] - median).abs() <= EDGE_SIGMAS * d[*k].sqrt())

@@ -74,6 +74,7 @@ pub fn survey(sc: &Scenario, dir: &Path) -> Survey {
             _ => None,
         });
         t.normal_e = plate.map(|n| frame.r_enu_to_e * n);
+        t.half_size_m = Some([0.25, 0.25]);
     }
     let (sensor, clock) = sim_support::configured(dir);
     let j: serde_json::Value =
