@@ -132,3 +132,39 @@ fn cluster(hits: &[TargetReturn], gap_m: f64) -> Vec<Cluster> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ret(profile: u32, beta_deg: f64) -> TargetReturn {
+        TargetReturn {
+            profile,
+            beta_rad: beta_deg.to_radians(),
+            alpha_rad: 0.0,
+            range_m: 5.0,
+            intensity: 65535,
+        }
+    }
+
+    #[test]
+    fn clusters_split_by_profile_gap_and_across_the_profile() {
+        // A target over profiles 10-12, a sign at profiles 20-21, a far return at 11.
+        let hits = [
+            ret(10, 70.0),
+            ret(10, 71.0),
+            ret(11, 70.5),
+            ret(11, 90.0),
+            ret(12, 70.0),
+            ret(20, 70.0),
+            ret(21, 70.5),
+        ];
+        let mut c = cluster(&hits, 0.3);
+        c.sort_by(|a, b| a.mean_profile.total_cmp(&b.mean_profile));
+        let sizes: Vec<usize> = c.iter().map(|c| c.returns.len()).collect();
+        assert_eq!(sizes, vec![4, 1, 2]);
+        assert_eq!(c[0].profile, 11);
+        assert!((c[0].beta_rad.to_degrees() - 70.375).abs() < 1e-9);
+        assert_eq!(c[2].profile, 21);
+    }
+}

@@ -84,3 +84,44 @@ pub(crate) fn robust_fit(obs: &[Obs], active: &[usize], k: f64) -> Option<(LineF
         outliers.push(act.remove(best.0));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn line(t0: f64, period: f64, nus: &[f64]) -> Vec<Obs> {
+        nus.iter()
+            .map(|&nu| Obs {
+                nu,
+                y_s: t0 + period * nu,
+                sigma_s: 0.01,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn exact_line_is_recovered_with_the_textbook_covariance() {
+        let obs = line(0.3, 0.0303, &[100.0, 120.0, 9000.0, 9030.0]);
+        let f = fit(&obs.iter().collect::<Vec<_>>()).unwrap();
+        assert!((f.x[0] - 0.3).abs() < 1e-12 && (f.x[1] - 0.0303).abs() < 1e-15);
+        // var(T) = sigma^2 / sum (nu - mean)^2 for equal weights.
+        let mean = (100.0 + 120.0 + 9000.0 + 9030.0) / 4.0;
+        let sxx: f64 = [100.0, 120.0, 9000.0, 9030.0]
+            .iter()
+            .map(|n: &f64| (n - mean).powi(2))
+            .sum();
+        assert!((f.cov[(1, 1)] / (1e-4 / sxx) - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn one_gross_outlier_is_removed_and_one_place_is_singular() {
+        let mut obs = line(0.3, 0.0303, &[100.0, 120.0, 5000.0, 9000.0, 9030.0]);
+        obs[2].y_s += 0.33;
+        let all: Vec<usize> = (0..obs.len()).collect();
+        let (f, out) = robust_fit(&obs, &all, 5.0).unwrap();
+        assert_eq!(out, vec![2]);
+        assert!((f.x[1] - 0.0303).abs() < 1e-15);
+        let same = line(0.3, 0.0303, &[100.0, 100.0, 100.0]);
+        assert!(fit(&same.iter().collect::<Vec<_>>()).is_none());
+    }
+}
