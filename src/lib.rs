@@ -16,6 +16,7 @@ pub mod pipeline;
 pub mod plot;
 pub mod progress;
 pub mod sim;
+pub mod sync;
 pub mod timing;
 pub mod trajectory;
 pub mod uncertainty;

@@ -34,6 +34,77 @@ pub struct PipelineConfig {
     /// Per-point uncertainty (optional; needs `inputs.smrmsg`).
     #[serde(default)]
     pub uncertainty: Option<UncertaintyConfig>,
+    /// Object-space time synchronisation (optional; runs before georeferencing).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sync: Option<SyncConfig>,
+}
+
+/// `[sync]`: estimate t0 and T (and optionally the attitude latency) from surveyed sync
+/// targets before georeferencing; the estimates replace `time.t0_s` / `time.period_s`
+/// (docs/sync.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SyncConfig {
+    /// Sync points (control-point CSV: target centres).
+    pub points: PathBuf,
+    /// Target faces (patches CSV, ids as in `points`): needed by `method = "refined"`.
+    #[serde(default)]
+    pub targets: Option<PathBuf>,
+    /// Approximate t0 (s); default `time.t0_s`.
+    #[serde(default)]
+    pub t0_approx_s: Option<f64>,
+    /// Approximate period (s); default `time.period_s`.
+    #[serde(default)]
+    pub period_approx_s: Option<f64>,
+    /// Detection searches this far (s) either side of the predicted sighting.
+    #[serde(default = "default_sync_window_s")]
+    pub window_s: f64,
+    /// `paper` (one observation per sighting) or `refined` (every target return).
+    #[serde(default = "default_sync_method")]
+    pub method: crate::sync::Method,
+    /// Estimate the attitude latency jointly (refined only; reported only if constrained).
+    #[serde(default)]
+    pub estimate_latency: bool,
+    /// Returns at or above this intensity may belong to a target.
+    #[serde(default = "default_sync_min_intensity")]
+    pub min_intensity: u16,
+    /// Targets further than this from the scanner are not looked for (m).
+    #[serde(default = "default_sync_max_range_m")]
+    pub max_range_m: f64,
+    /// Range noise of the scanner, 1 sigma (m).
+    #[serde(default = "default_sync_sigma_range_m")]
+    pub sigma_range_m: f64,
+    /// Mirror and cone angle noise, 1 sigma (deg).
+    #[serde(default = "default_sync_sigma_angle_deg")]
+    pub sigma_angle_deg: f64,
+    /// Sightings must span at least this long (s).
+    #[serde(default = "default_sync_min_span_s")]
+    pub min_span_s: f64,
+    /// Write the diagnostic PNGs beside the report.
+    #[serde(default = "yes")]
+    pub plots: bool,
+}
+
+fn default_sync_window_s() -> f64 {
+    1.0
+}
+fn default_sync_method() -> crate::sync::Method {
+    crate::sync::Method::Paper
+}
+fn default_sync_min_intensity() -> u16 {
+    60000
+}
+fn default_sync_max_range_m() -> f64 {
+    30.0
+}
+fn default_sync_sigma_range_m() -> f64 {
+    0.005
+}
+fn default_sync_sigma_angle_deg() -> f64 {
+    0.002
+}
+fn default_sync_min_span_s() -> f64 {
+    30.0
 }
 
 /// `[inputs]`: what is read.
@@ -468,7 +539,10 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
             format!("must be in (0, 1] s, got {}", t.period_s),
         );
     }
-    if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) {
+    if let Some(sy) = &c.sync {
+        validate_sync(sy, t, source)?;
+    }
+    if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) && c.sync.is_none() {
         return bad(
             "time.t0_s",
             "the software time model needs t0_s (or a sync stage)".into(),
@@ -517,6 +591,47 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
     Ok(())
 }
 
+fn validate_sync(sy: &SyncConfig, t: &TimeConfig, source: &str) -> Result<()> {
+    let bad = |key: &str, problem: String| Err(Error::config(source, key, problem));
+    if t.model != TimeModel::Software {
+        return bad(
+            "sync",
+            "object-space sync estimates the software clock: needs time.model = \"software\""
+                .into(),
+        );
+    }
+    if !sy.t0_approx_s.or(t.t0_s).is_some_and(f64::is_finite) {
+        return bad(
+            "sync.t0_approx_s",
+            "an approximate t0 is needed (sync.t0_approx_s or time.t0_s)".into(),
+        );
+    }
+    let pos = |v: f64| v.is_finite() && v > 0.0;
+    let checks = [
+        ("sync.window_s", sy.window_s),
+        ("sync.max_range_m", sy.max_range_m),
+        ("sync.sigma_range_m", sy.sigma_range_m),
+        ("sync.sigma_angle_deg", sy.sigma_angle_deg),
+        ("sync.min_span_s", sy.min_span_s),
+        (
+            "sync.period_approx_s",
+            sy.period_approx_s.unwrap_or(t.period_s),
+        ),
+    ];
+    for (key, v) in checks {
+        if !pos(v) {
+            return bad(key, format!("must be a finite number > 0, got {v}"));
+        }
+    }
+    if sy.estimate_latency && sy.method == crate::sync::Method::Paper {
+        return bad(
+            "sync.estimate_latency",
+            "the latency is estimated by method = \"refined\" only".into(),
+        );
+    }
+    Ok(())
+}
+
 fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
     let fix = |p: &mut PathBuf| {
         if p.is_relative() {
@@ -531,5 +646,11 @@ fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
     fix(&mut c.output.las);
     if let Some(p) = c.output.report.as_mut() {
         fix(p);
+    }
+    if let Some(sy) = c.sync.as_mut() {
+        fix(&mut sy.points);
+        if let Some(p) = sy.targets.as_mut() {
+            fix(p);
+        }
     }
 }

@@ -119,6 +119,22 @@ impl From<NavGap> for RejectReason {
 }
 
 impl Georeferencer<'_> {
+    /// Uses a synchronisation result: its clock (and latency, when estimated) for the time
+    /// model, and its covariances for the timing term of the uncertainty.
+    fn apply_sync(&mut self, s: &crate::sync::SyncResult) {
+        self.clock.t0_s = s.clock.t0_s;
+        self.clock.period_s = s.clock.period_s;
+        if let Some(u) = self.uncertainty.as_mut() {
+            u.inputs.clock_covariance_s2 = nalgebra::Matrix2::from(s.clock.cov_t0_period);
+        }
+        if let (Some(tau), Some(sigma)) = (s.attitude_latency_s, s.sigma_attitude_latency_s) {
+            self.attitude_latency_s = tau;
+            if let Some(u) = self.uncertainty.as_mut() {
+                u.inputs.sigma_attitude_latency_s = sigma;
+            }
+        }
+    }
+
     /// GPS time (s) of a return, per the configured time model.
     #[inline]
     fn time_of(&self, r: &RawReturn) -> f64 {
@@ -346,6 +362,21 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         seconds: started.elapsed().as_secs_f64(),
     });
 
+    let sync_started = Instant::now();
+    let stem = c
+        .output
+        .las
+        .file_stem()
+        .unwrap_or_default()
+        .to_string_lossy();
+    let sync = crate::sync::stage::run(c, &traj, &profile_files, &out_dir, &stem)?;
+    if c.sync.is_some() {
+        stages.push(StageTiming {
+            stage: "sync".into(),
+            seconds: sync_started.elapsed().as_secs_f64(),
+        });
+    }
+
     let georef_started = Instant::now();
     let settings = SinkSettings::new(c, &frame, &traj, &p.path)?;
     let mut sink = LasSink::new(settings);
@@ -354,7 +385,10 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     let mut inputs = Vec::new();
     for (k, (original, file)) in profile_files.iter().enumerate() {
         let psid = c.inputs.first_point_source_id.saturating_add(k as u16);
-        let g = georeferencer(p, &traj, &frame, file, psid)?;
+        let mut g = georeferencer(p, &traj, &frame, file, psid)?;
+        if let Some(s) = sync.get(k) {
+            g.apply_sync(&s.result);
+        }
         sink.start_input(original)?;
         let report = process_file(
             &g,
@@ -404,6 +438,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         stages,
         returns_per_second: totals.read as f64 / georef_s.max(1e-9),
         peak_rss_bytes: super::report::peak_rss_bytes(),
+        sync,
     })
 }
 

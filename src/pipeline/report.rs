@@ -197,6 +197,9 @@ pub struct RunReport {
     pub returns_per_second: f64,
     /// Peak resident memory of the process (bytes; Linux `VmHWM`), when known.
     pub peak_rss_bytes: Option<u64>,
+    /// Object-space synchronisation, per profile file (when `[sync]` is present).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub sync: Vec<crate::sync::stage::SyncStageReport>,
 }
 
 /// Peak resident set size of this process (bytes), from `/proc/self/status` on Linux.

@@ -120,6 +120,11 @@ pub struct SceneCfg {
     pub reflectance: [f64; 5],
     /// Reflectance of retro-reflective sync targets (>> 1 saturates the intensity).
     pub sync_reflectance: f64,
+    /// Yaw of every sync target's face about the vertical, away from facing its street (deg).
+    pub sync_target_yaw_deg: f64,
+    /// When > 0, an unlisted retro-reflective plate (a sign, not a sync target) stands this
+    /// far along the street beyond the first sync target (m).
+    pub decoy_offset_m: f64,
 }
 
 impl Default for SceneCfg {
@@ -147,6 +152,8 @@ impl Default for SceneCfg {
             grid_cell_m: 8.0,
             reflectance: [0.2, 0.5, 0.4, 0.8, 0.3],
             sync_reflectance: 50.0,
+            sync_target_yaw_deg: 0.0,
+            decoy_offset_m: 0.0,
         }
     }
 }
@@ -500,6 +507,13 @@ impl SceneCfg {
             c.range(&format!("scene.reflectance[{i}]"), *r, 0.0, 1.0);
         }
         c.range("scene.sync_reflectance", self.sync_reflectance, 0.0, 1000.0);
+        c.range(
+            "scene.sync_target_yaw_deg",
+            self.sync_target_yaw_deg,
+            -80.0,
+            80.0,
+        );
+        c.range("scene.decoy_offset_m", self.decoy_offset_m, 0.0, 1000.0);
     }
 }
 

@@ -212,8 +212,13 @@ impl Builder<'_> {
         }
         let n_t = c.sync_targets_per_side;
         for k in 0..n_t {
-            let p = at(len * (k as f64 + 0.3) / n_t as f64, 1.0);
-            self.sync_target(p, u, [-inward[0], -inward[1]], curb);
+            let s_k = len * (k as f64 + 0.3) / n_t as f64;
+            let first = self.landmarks.iter().all(|l| !l.id.starts_with("SYNC"));
+            self.sync_target(at(s_k, 1.0), u, [-inward[0], -inward[1]], curb);
+            if c.decoy_offset_m > 0.0 && first {
+                let p = at(s_k + c.decoy_offset_m, 1.0);
+                self.plate(p, u, [-inward[0], -inward[1]], curb);
+            }
         }
         let n_v = c.trees_per_side;
         for k in 0..n_v {
@@ -268,11 +273,20 @@ impl Builder<'_> {
     }
 
     /// Flat 0.5 x 0.5 m retro-reflective target, face centre 1.2 m above the walk, its face
-    /// normal `facing`; `u` its horizontal in-plane direction.
+    /// normal `facing` yawed by `scene.sync_target_yaw_deg`; `u` its horizontal in-plane
+    /// direction. Listed as a landmark.
     fn sync_target(&mut self, p: [f64; 2], u: [f64; 2], facing: [f64; 2], curb: f64) {
+        let face = self.plate(p, u, facing, curb);
+        let id = format!("SYNC{:03}", self.landmarks.len());
+        self.landmarks.push(Landmark { id, enu: face });
+    }
+
+    /// The retro-reflective plate of [`Self::sync_target`], unlisted; returns its face centre.
+    fn plate(&mut self, p: [f64; 2], u: [f64; 2], facing: [f64; 2], curb: f64) -> Vector3<f64> {
         let face = Vector3::new(p[0], p[1], self.ground(p[0], p[1]) + curb + 1.2);
-        let f = Vector3::new(facing[0], facing[1], 0.0);
-        let r = Matrix3::from_columns(&[Vector3::new(u[0], u[1], 0.0), -f, Vector3::z()]);
+        let yaw = rot_z(self.cfg.sync_target_yaw_deg.to_radians());
+        let f = yaw * Vector3::new(facing[0], facing[1], 0.0);
+        let r = Matrix3::from_columns(&[yaw * Vector3::new(u[0], u[1], 0.0), -f, Vector3::z()]);
         self.push(
             Shape::Box {
                 centre: face - f * 0.01,
@@ -281,8 +295,7 @@ impl Builder<'_> {
             },
             Class::SyncTarget,
         );
-        let id = format!("SYNC{:03}", self.landmarks.len());
-        self.landmarks.push(Landmark { id, enu: face });
+        face
     }
 
     fn tree(&mut self, p: [f64; 2], curb: f64) {
