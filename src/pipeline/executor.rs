@@ -735,8 +735,9 @@ impl CounterTracker {
     }
 }
 
-/// Opens and validates every input of a pipeline without georeferencing: the trajectory, each
-/// profile file (CSV files are parsed completely), the time model's needs and the map frame.
+/// Opens and validates every input of a pipeline without georeferencing: the trajectory, the
+/// sync points and targets, each profile file (CSV files are parsed completely), the time
+/// model's needs and the map frame.
 pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     let c = &p.config;
     let traj_opts = TrajectoryOptions {
@@ -745,6 +746,12 @@ pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let frame = map_frame(&c.output.frame, &traj)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    if let Some(sync) = &c.sync {
+        crate::io::points::read_control_points(&sync.points)?;
+        if let Some(t) = &sync.targets {
+            crate::io::patches::read_patches(t)?;
+        }
+    }
     for (k, (_, file)) in open_profiles(&c.inputs.profiles, staging.path())?
         .iter()
         .enumerate()
