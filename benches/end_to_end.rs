@@ -7,6 +7,7 @@
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
+use kinescan::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
 use std::path::Path;
 use std::process::Command;
 
@@ -35,6 +36,33 @@ fn write_sbet(path: &Path, seconds: f64) {
     }
     w.finish().unwrap();
 }
+
+/// 1 Hz accuracy over the same span.
+fn write_smrmsg(path: &Path, seconds: f64) {
+    let mut w = SmrmsgWriter::create(path).unwrap();
+    for k in 0..=(seconds + 2.0) as usize {
+        let r = SmrmsgRecord {
+            time_s: T0_S - 1.0 + k as f64,
+            north_m: 0.02,
+            east_m: 0.02,
+            down_m: 0.03,
+            vel_north_mps: 0.01,
+            vel_east_mps: 0.01,
+            vel_down_mps: 0.01,
+            roll_arcmin: 0.3,
+            pitch_arcmin: 0.3,
+            heading_arcmin: 1.0,
+        };
+        w.push(&r).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// The `[uncertainty]` table of the second run (all fields written).
+const UNCERTAINTY: &str = "\n[uncertainty]\nsigma_lever_arm_b_m = [0.01, 0.01, 0.01]\n\
+    sigma_boresight_deg = [0.01, 0.01, 0.01]\nsigma_alpha_deg = 0.005\nsigma_beta_deg = 0.005\n\
+    sigma_range_m = 0.005\nsigma_range_zero_m = 0.005\n\
+    clock_covariance_s2 = [[1e-8, 0.0], [0.0, 1e-16]]\nsigma_attitude_latency_s = 0.0002\n";
 
 /// `n` returns: 2 M returns/s, 250 Hz mirror, ranges 5-40 m, 1% missing.
 fn write_profiles(path: &Path, n: u64) {
@@ -72,36 +100,41 @@ fn main() {
     let dir = kept.as_deref().unwrap_or(tmp.path());
     std::fs::create_dir_all(dir).unwrap();
     write_sbet(&dir.join("t.sbet"), n as f64 / RATE_HZ);
+    write_smrmsg(&dir.join("t.smrmsg"), n as f64 / RATE_HZ);
     write_profiles(&dir.join("p.ksprof"), n);
     let pipeline = format!(
         "[inputs]\nsbet = \"t.sbet\"\nprofiles = [\"p.ksprof\"]\n\n[sensor]\n\
          lever_arm_b_m = [0.5, 0.0, -1.5]\n\n[time]\nt0_s = {T0_S}\nperiod_s = {PERIOD_S}\n\
          beta_start_deg = -180.0\n\n[output]\nlas = \"out/cloud.las\"\n"
     );
+    let with_smrmsg = pipeline.replace("profiles =", "smrmsg = \"t.smrmsg\"\nprofiles =");
+    std::fs::write(dir.join("uncertainty.toml"), with_smrmsg + UNCERTAINTY).unwrap();
     std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
     println!(
         "end_to_end: {n} returns ({:.1} GB profile file)",
         n as f64 * 40.0 / 1e9
     );
-    for threads in [1, 2] {
+    let runs = [
+        ("pipeline.toml", 1),
+        ("pipeline.toml", 2),
+        ("uncertainty.toml", 1),
+        ("uncertainty.toml", 2),
+    ];
+    for (file, threads) in runs {
+        let started = std::time::Instant::now();
         let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
-            .args([
-                "--quiet",
-                "run",
-                "pipeline.toml",
-                "--threads",
-                &threads.to_string(),
-            ])
+            .args(["--quiet", "run", file, "--threads", &threads.to_string()])
             .current_dir(dir)
             .status()
             .unwrap();
         assert!(status.success());
+        let wall = started.elapsed().as_secs_f64();
         let report = std::fs::read(dir.join("out/cloud.report.json")).unwrap();
         let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
         let rps = report["returns_per_second"].as_f64().unwrap();
         let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
         println!(
-            "threads {threads}: {:.2} M returns/s, peak RSS {rss:.0} MB",
+            "{file}, {threads} thread(s): {:.2} M returns/s georeferenced, {wall:.1} s for the whole run, peak RSS {rss:.0} MB",
             rps / 1e6
         );
     }
