@@ -16,6 +16,7 @@ use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geod
 use crate::geo::rotations::r_zyx;
 use crate::io::atomic::write_atomic;
 use crate::pipeline::config::UncertaintyConfig;
+use crate::plot::{Plot, PALETTE};
 use crate::trajectory::NavSigma;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector3};
@@ -296,10 +297,9 @@ pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<Sensitivity
     write_atomic(&points_csv, points_table(&report).as_bytes())?;
     let plot_csv = out_dir.join("share_vs_range.csv");
     write_atomic(&plot_csv, share_vs_range_table(&report).as_bytes())?;
-    report.outputs = vec![points_csv, plot_csv.clone()];
-    report
-        .outputs
-        .extend(plot_share_against_range(&plot_csv, out_dir)?);
+    report.outputs = vec![points_csv, plot_csv];
+    let plots = plot_share_against_range(&report, out_dir)?;
+    report.outputs.extend(plots);
     let json = out_dir.join("sensitivity.json");
     report.outputs.push(json.clone());
     let text = serde_json::to_string_pretty(&report)
@@ -308,11 +308,78 @@ pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<Sensitivity
     Ok(report)
 }
 
-/// The PNG plots (share against range, one per group, like paper 003's scatter plots) from
-/// the plot data in `share_vs_range.csv`. The plotting module `kinescan::plot` is not merged
-/// yet: this is where its call goes; until then no PNG is written and the list is empty.
-fn plot_share_against_range(_plot_csv: &Path, _out_dir: &Path) -> Result<Vec<PathBuf>> {
-    Ok(Vec::new())
+/// Inputs drawn in the per-input plots: those whose linear share of the output reaches this.
+const PLOT_INPUT_MIN_SHARE: f64 = 0.1;
+
+/// The PNG plots of share against range, like paper 003's scatter plots, two per output
+/// ([`OUTPUTS`]): `share_vs_range_<output>.png` with the six groups and
+/// `share_vs_range_inputs_<output>.png` with the inputs whose linear share reaches 10% at
+/// some point (at most 8, largest first). Each factor is drawn in one colour: its first-order
+/// Sobol index at every point as markers, its analytic linear share as a line through the
+/// points in range order.
+fn plot_share_against_range(r: &SensitivityReport, out_dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut order: Vec<&PointResult> = r.points.iter().collect();
+    order.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
+    let mut written = Vec::new();
+    for (k, output) in OUTPUTS.iter().enumerate() {
+        let series = |f: usize| -> [Vec<(f64, f64)>; 2] {
+            let pts = |v: &dyn Fn(&FactorRow) -> f64| {
+                order
+                    .iter()
+                    .map(|p| (p.range_m, v(&p.factors[f])))
+                    .collect()
+            };
+            [
+                pts(&|row| row.sobol[k].first),
+                pts(&|row| row.linear_share[k]),
+            ]
+        };
+        let groups: Vec<usize> = (N_INPUTS..N_INPUTS + Group::ALL.len()).collect();
+        let mut inputs: Vec<(usize, f64)> = (0..N_INPUTS)
+            .map(|i| {
+                (
+                    i,
+                    order
+                        .iter()
+                        .map(|p| p.factors[i].linear_share[k])
+                        .fold(0.0, f64::max),
+                )
+            })
+            .filter(|&(_, m)| m >= PLOT_INPUT_MIN_SHARE)
+            .collect();
+        inputs.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let inputs: Vec<usize> = inputs.iter().take(PALETTE.len()).map(|&(i, _)| i).collect();
+        for (what, factors, file) in [
+            ("groups", groups, format!("share_vs_range_{output}.png")),
+            (
+                "inputs",
+                inputs,
+                format!("share_vs_range_inputs_{output}.png"),
+            ),
+        ] {
+            if factors.is_empty() || order.is_empty() {
+                continue;
+            }
+            let title =
+                format!("Share of the {output} variance by {what} (S1 markers, linear lines)");
+            let mut plot = Plot::new(&title, "range (m)", "share of variance")
+                .size(1000, 700)
+                .y_range(0.0, 1.0);
+            for (c, &f) in factors.iter().enumerate() {
+                let [first, linear] = series(f);
+                let name = &order[0].factors[f].factor;
+                plot = plot
+                    .scatter(&format!("{name} S1"), &first)
+                    .color(PALETTE[c % PALETTE.len()])
+                    .line(&format!("{name} linear"), &linear)
+                    .color(PALETTE[c % PALETTE.len()]);
+            }
+            let path = out_dir.join(file);
+            plot.save_png(&path)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
 }
 
 /// The factors studied: each input alone, then each group.
