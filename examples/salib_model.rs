@@ -11,7 +11,7 @@
 
 use kinescan::uncertainty::model::{Input, PointGeometry, N_INPUTS};
 use kinescan::uncertainty::sensitivity::{
-    enu_error_model, load_sensitivity, study_point, study_sigmas,
+    enu_error_model, flat_ground_point, load_sensitivity, study_sigmas,
 };
 use kinescan::uncertainty::sobol::{Row, SaltelliDesign};
 use std::io::Write;
@@ -53,7 +53,15 @@ fn case() -> (PointGeometry, [f64; N_INPUTS]) {
     std::fs::write(&path, CASE).expect("write case");
     let c = load_sensitivity(&path).expect("valid case");
     std::fs::remove_dir_all(&dir).ok();
-    (study_point(&c, 30.0), study_sigmas(&c).expect("sigmas"))
+    let (platform, sensor, points) = (c.platform.as_ref(), c.sensor.as_ref(), c.points.as_ref());
+    let height = points.expect("[points]").scanner_height_m;
+    let geom = flat_ground_point(
+        platform.expect("[platform]"),
+        sensor.expect("[sensor]"),
+        height,
+        30.0,
+    );
+    (geom, study_sigmas(&c, None).expect("sigmas"))
 }
 
 fn write_f64(path: &Path, values: impl Iterator<Item = f64>) {

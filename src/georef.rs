@@ -69,6 +69,89 @@ pub fn georeference(pose: &Pose, sensor: &Sensor, x_s_m: &Vector3<f64>) -> Vecto
     pose.nav.r_e_m + r_b_to_e(pose) * (sensor.lever_arm_b_m + sensor.r_s_to_b * x_s_m)
 }
 
+/// The terms of the SPEC 4 equation for one return, computed once and shared by the point
+/// ([`ReturnTerms::point_e`], identical to [`georeference`]) and the uncertainty Jacobian
+/// (`crate::uncertainty::PointGeometry::jacobian_in_axes`), which needs the same rotations and
+/// beam trigonometry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReturnTerms {
+    /// `R_n^e(lat, lon)` at the IMU.
+    pub r_n_to_e: Matrix3<f64>,
+    /// `R_b^n` (`Rz(heading) Ry(pitch) Rx(roll)`).
+    pub r_b_to_n: Matrix3<f64>,
+    /// `(sin, cos)` of alpha.
+    pub sin_cos_alpha: (f64, f64),
+    /// `(sin, cos)` of beta.
+    pub sin_cos_beta: (f64, f64),
+    /// `rho + K` (m).
+    pub range_total_m: f64,
+    /// Scanner-frame point `x_s = (rho + K) u_s(alpha, beta)` (m).
+    pub x_s_m: Vector3<f64>,
+    /// `a_b = l_b + R_s^b x_s` (m, body frame).
+    pub a_b_m: Vector3<f64>,
+}
+
+impl ReturnTerms {
+    /// The terms for `R_n^e`, `R_b^n`, lever arm `l_b` (m), `R_s^b`, alpha, beta (rad) and
+    /// `rho + K` (m).
+    pub fn new(
+        r_n_to_e: Matrix3<f64>,
+        r_b_to_n: Matrix3<f64>,
+        lever_arm_b_m: &Vector3<f64>,
+        r_s_to_b: &Matrix3<f64>,
+        alpha_rad: f64,
+        beta_rad: f64,
+        range_total_m: f64,
+    ) -> Self {
+        let (sa, ca) = alpha_rad.sin_cos();
+        let (sb, cb) = beta_rad.sin_cos();
+        let x_s_m = Vector3::new(sa, -ca * sb, ca * cb) * range_total_m;
+        ReturnTerms {
+            r_n_to_e,
+            r_b_to_n,
+            sin_cos_alpha: (sa, ca),
+            sin_cos_beta: (sb, cb),
+            range_total_m,
+            x_s_m,
+            a_b_m: lever_arm_b_m + r_s_to_b * x_s_m,
+        }
+    }
+
+    /// The terms of a return with measured range `range_m` (m) georeferenced with `pose` and
+    /// `sensor`.
+    #[inline]
+    pub fn of_pose(
+        pose: &Pose,
+        sensor: &Sensor,
+        range_m: f64,
+        alpha_rad: f64,
+        beta_rad: f64,
+    ) -> Self {
+        ReturnTerms::new(
+            r_n_to_e(pose.nav.lat_rad, pose.nav.lon_rad),
+            *pose.q_b_to_n.to_rotation_matrix().matrix(),
+            &sensor.lever_arm_b_m,
+            &sensor.r_s_to_b,
+            alpha_rad,
+            beta_rad,
+            range_m + sensor.range_zero_m,
+        )
+    }
+
+    /// Unit beam `u_s(alpha, beta)` in the scanner frame.
+    #[inline]
+    pub fn u_s(&self) -> Vector3<f64> {
+        let ((sa, ca), (sb, cb)) = (self.sin_cos_alpha, self.sin_cos_beta);
+        Vector3::new(sa, -ca * sb, ca * cb)
+    }
+
+    /// ECEF point (m) for the IMU at `r_e_m` (SPEC 4).
+    #[inline]
+    pub fn point_e(&self, r_e_m: &Vector3<f64>) -> Vector3<f64> {
+        r_e_m + (self.r_n_to_e * self.r_b_to_n) * self.a_b_m
+    }
+}
+
 /// The beam as a ray in ECEF: scanner optical centre (m) and unit direction, for the forward
 /// (simulation) direction of the equation. `x_e = origin + (rho + K) * dir`.
 #[inline]
@@ -88,6 +171,42 @@ pub fn beam_e(
 mod tests {
     use super::*;
     use std::f64::consts::FRAC_PI_2;
+
+    /// The shared terms give the very same point as `georeference` (same operations, same
+    /// order), so the pipeline's coordinates do not depend on whether uncertainty is on.
+    #[test]
+    fn return_terms_reproduce_georeference() {
+        use crate::geo::rotations::q_b_to_n;
+        use crate::trajectory::NavSample;
+        let q = q_b_to_n(0.02, -0.03, 1.2);
+        let nav = NavSample {
+            t_s: 0.0,
+            lat_rad: 0.84,
+            lon_rad: 0.2,
+            h_m: 300.0,
+            r_e_m: Vector3::new(4.0e6, 0.8e6, 4.8e6),
+            v_n_mps: Vector3::zeros(),
+            q_b_to_n: q,
+            omega_b_radps: Vector3::zeros(),
+        };
+        let pose = Pose {
+            nav,
+            q_b_to_n: q,
+            omega_b_radps: Vector3::zeros(),
+        };
+        let sensor = Sensor::new(
+            Vector3::new(0.4, -0.3, -1.6),
+            Vector3::new(0.03, -0.04, 1.6),
+            0.002,
+            0.01,
+        );
+        for k in 0..100 {
+            let (rho, beta) = (1.0 + k as f64 * 0.7, k as f64 * 0.063);
+            let x = georeference(&pose, &sensor, &point_s(&sensor, rho, 0.002, beta));
+            let t = ReturnTerms::of_pose(&pose, &sensor, rho, 0.002, beta);
+            assert_eq!(t.point_e(&nav.r_e_m), x);
+        }
+    }
 
     #[test]
     fn beam_convention() {

@@ -188,6 +188,15 @@ impl Plot {
         )
     }
 
+    /// Sets the colour of the series added last (instead of its palette colour), e.g. to draw
+    /// a fit in the colour of its data.
+    pub fn color(mut self, color: Rgb) -> Self {
+        if let Some(s) = self.series.last_mut() {
+            s.color = color;
+        }
+        self
+    }
+
     fn push(mut self, name: &str, kind: Kind) -> Self {
         let color = PALETTE[self.series.len() % PALETTE.len()];
         self.series.push(Series {

@@ -10,7 +10,7 @@
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::rotations::{q_b_to_n, wrap_pi};
 use crate::io::sbet::{SbetFile, SbetRecord};
-use crate::io::smrmsg::{SmrmsgFile, RAD_PER_ARCMIN};
+use crate::io::smrmsg::{SmrmsgFile, SmrmsgRecord, RAD_PER_ARCMIN};
 use crate::Result;
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 use std::path::Path;
@@ -181,9 +181,11 @@ impl Trajectory {
 
     /// A cursor over SMRMSG sigmas, or `None` without an SMRMSG file.
     pub fn sigma_cursor(&self) -> Option<SigmaCursor<'_>> {
-        self.smrmsg
-            .as_ref()
-            .map(|f| SigmaCursor { file: f, idx: 0 })
+        self.smrmsg.as_ref().map(|f| SigmaCursor {
+            file: f,
+            idx: usize::MAX,
+            interval: (0.0, [0.0; 6], [0.0; 6]),
+        })
     }
 }
 
@@ -245,10 +247,14 @@ impl NavCursor<'_> {
     }
 }
 
-/// Interpolating cursor over SMRMSG sigmas.
+/// Interpolating cursor over SMRMSG sigmas; caches the current interval as a start value and
+/// a rate (sigmas are linear in time between records).
 pub struct SigmaCursor<'a> {
     file: &'a SmrmsgFile,
     idx: usize,
+    /// Start time (s), sigmas at it and their rates per second: north, east, down (m), roll,
+    /// pitch, heading (rad).
+    interval: (f64, [f64; 6], [f64; 6]),
 }
 
 impl SigmaCursor<'_> {
@@ -256,21 +262,30 @@ impl SigmaCursor<'_> {
     pub fn at(&mut self, t: f64) -> Result<NavSigma, NavGap> {
         let f = self.file;
         let i = locate(f.len(), |k| f.time_s(k), self.idx, t).ok_or(NavGap::OutsideAccuracy)?;
-        self.idx = i;
-        let (a, b) = (f.record(i), f.record(i + 1));
-        let w = (t - a.time_s) / (b.time_s - a.time_s);
-        let l = |x: f64, y: f64| x + w * (y - x);
+        if i != self.idx {
+            let (a, b) = (f.record(i), f.record(i + 1));
+            let v = |r: &SmrmsgRecord| {
+                let rad = RAD_PER_ARCMIN;
+                [
+                    r.north_m,
+                    r.east_m,
+                    r.down_m,
+                    r.roll_arcmin * rad,
+                    r.pitch_arcmin * rad,
+                    r.heading_arcmin * rad,
+                ]
+            };
+            let (va, vb) = (v(&a), v(&b));
+            let dt = b.time_s - a.time_s;
+            self.interval = (a.time_s, va, std::array::from_fn(|k| (vb[k] - va[k]) / dt));
+            self.idx = i;
+        }
+        let (t_a, a, rate) = &self.interval;
+        let dt = t - t_a;
+        let l = |k: usize| a[k] + rate[k] * dt;
         Ok(NavSigma {
-            pos_ned_m: Vector3::new(
-                l(a.north_m, b.north_m),
-                l(a.east_m, b.east_m),
-                l(a.down_m, b.down_m),
-            ),
-            att_rph_rad: Vector3::new(
-                l(a.roll_arcmin, b.roll_arcmin),
-                l(a.pitch_arcmin, b.pitch_arcmin),
-                l(a.heading_arcmin, b.heading_arcmin),
-            ) * RAD_PER_ARCMIN,
+            pos_ned_m: Vector3::new(l(0), l(1), l(2)),
+            att_rph_rad: Vector3::new(l(3), l(4), l(5)),
         })
     }
 }

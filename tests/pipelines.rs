@@ -18,6 +18,9 @@ fn covered_by(name: &str) -> Option<&'static str> {
         n if n.starts_with("scenario_") => Some("scenarios_load (and tests/sim_*.rs run them)"),
         "calib_latency.toml" | "calib_boresight.toml" => Some("calibration_templates_load"),
         "calib_sim_table.toml" | "calib_sim_tripod.toml" => Some("tests/calib_e2e.rs"),
+        "sensitivity_parking_lot_expected.toml" | "sensitivity_parking_lot_ideal.toml" => {
+            Some("tests/uncertainty_parking_lot.rs")
+        }
         _ => None,
     }
 }

@@ -1,8 +1,9 @@
 //! Sobol machinery against analytic indices, and the sensitivity study end to end.
 
+use kinescan::plot::PALETTE;
 use kinescan::uncertainty::sensitivity::{load_sensitivity, run_sensitivity};
 use kinescan::uncertainty::sobol::SaltelliDesign;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// `y = x1 + x2 + x1 x3` with `x ~ N(0, s^2)`, s = (1, 0.5, 0.8): V = 1 + 0.25 + 0.64;
 /// S1 = 1/V, S2 = 0.25/V, S3 = 0; ST1 = 1.64/V, ST2 = 0.25/V, ST3 = 0.64/V. The closed group
@@ -83,6 +84,7 @@ fn study_tables_and_additivity() {
     }
     let csv = std::fs::read_to_string(out.join("sensitivity_points.csv")).unwrap();
     assert_eq!(csv.lines().count(), 1 + 4 * 24 * 4);
+    check_plots(&report.outputs, &out);
     for p in &report.points {
         let (mut group_sum, mut conf_sq) = (0.0, 0.0);
         for f in &p.factors {
@@ -111,6 +113,40 @@ fn study_tables_and_additivity() {
         for k in 0..3 {
             assert!((p.sigma_enu_mc_m[k] / p.sigma_enu_m[k] - 1.0).abs() < 0.05);
         }
+    }
+}
+
+/// The share-against-range plots: one per output for the groups, and the per-input ones listed
+/// in the report; each decodes as a 1000 x 700 PNG and shows its first factor's markers and
+/// line (so the data, not just the axes and legend, were drawn).
+fn check_plots(outputs: &[PathBuf], out: &Path) {
+    let pngs: Vec<&PathBuf> = outputs
+        .iter()
+        .filter(|p| p.extension().is_some_and(|e| e == "png"))
+        .collect();
+    for o in ["east", "north", "up", "total"] {
+        let p = out.join(format!("share_vs_range_{o}.png"));
+        assert!(pngs.contains(&&p), "{} not written", p.display());
+    }
+    assert!(pngs.len() > 4, "no per-input plot");
+    for path in pngs {
+        let decoder =
+            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+        let mut reader = decoder.read_info().unwrap();
+        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+        let info = reader.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (1000, 700), "{}", path.display());
+        assert_eq!(info.color_type, png::ColorType::Rgb);
+        // The legend shows 91 px of each colour; the first factor's markers and line add more.
+        let n = buf[..info.buffer_size()]
+            .chunks_exact(3)
+            .filter(|px| *px == PALETTE[0])
+            .count();
+        assert!(
+            n > 200,
+            "{}: {n} pixels of the first factor",
+            path.display()
+        );
     }
 }
 

@@ -9,13 +9,14 @@ use super::sink::{ExtraSlots, LasSink, SinkSettings};
 use crate::geo::local::LocalProjection;
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::wrap_pi;
-use crate::georef::{georeference, point_s, Sensor};
+use crate::georef::{ReturnTerms, Sensor};
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::{Mirror, ScannerClock};
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
 use crate::uncertainty::model::FrameCache;
-use crate::uncertainty::{propagate, PointCovariance, PointGeometry, UncertaintyInputs};
+use crate::uncertainty::propagate::covariance_of;
+use crate::uncertainty::{PointCovariance, PointGeometry, UncertaintyInputs};
 use crate::{Error, Result};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -186,11 +187,8 @@ impl Georeferencer<'_> {
             Some((cursor, frames)) => Some((cursor.at(t)?, frames)),
             None => None,
         };
-        let x_e = georeference(
-            &pose,
-            &self.sensor,
-            &point_s(&self.sensor, r.range_m, alpha, r.beta_rad),
-        );
+        let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, alpha, r.beta_rad);
+        let x_e = terms.point_e(&pose.nav.r_e_m);
         let x_m = self
             .local_projection(local, &pose.nav.r_e_m)
             .ecef_to_map(&x_e);
@@ -208,11 +206,13 @@ impl Georeferencer<'_> {
             p.extra[k] = r.range_m;
         }
         if let (Some(u), Some((nav_sigma, frames))) = (&self.uncertainty, nav_sigma) {
+            // The Jacobian reuses the georeferencing terms; the map axes and the local-level
+            // turn come from the cache.
             let geom = PointGeometry::from_pose(&pose, &self.sensor, alpha, r.beta_rad, r.range_m);
-            let level = *frames.local_level(&geom);
-            let to_map = frames.map_axes(&x_e);
-            let partials = self.clock_partials(r);
-            let cov = propagate(&geom, &level, &u.inputs, &nav_sigma, partials, to_map);
+            let dtheta = frames.local_level(&geom).dtheta_per_m;
+            let j = geom.jacobian_in_axes(frames.map_axes(&x_e), &dtheta, &terms);
+            let sigmas = u.inputs.sigmas(&nav_sigma, self.clock_partials(r));
+            let cov = covariance_of(&j, &sigmas);
             u.fill(&cov, &mut p.extra);
         }
         Ok((p, t))

@@ -23,7 +23,7 @@ use crate::geo::ellipsoid::{
 };
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::{r_zyx, skew, zyx_angles};
-use crate::georef::{beam_s, Sensor};
+use crate::georef::{beam_s, ReturnTerms, Sensor};
 use crate::trajectory::Pose;
 use nalgebra::{Matrix3, Rotation3, SMatrix, Vector3};
 
@@ -271,46 +271,72 @@ impl PointGeometry {
     /// [`Self::jacobian_e`] with the local-level quantities given (exact when `local` is
     /// [`LocalLevel::at`] the IMU; see [`FrameCache`] for a nearby one).
     pub fn jacobian_e_in(&self, local: &LocalLevel) -> Jacobian {
-        let r_n_e = local.r_n_to_e;
-        let r_b_n = self.r_b_to_n;
-        let r_b_e = r_n_e * r_b_n;
+        let terms = self.terms(local.r_n_to_e);
+        self.jacobian_in_axes(&Matrix3::identity(), &local.dtheta_per_m, &terms)
+    }
+
+    /// The georeferencing terms of this return with `R_n^e` given.
+    pub fn terms(&self, r_n_to_e: Matrix3<f64>) -> ReturnTerms {
+        ReturnTerms::new(
+            r_n_to_e,
+            self.r_b_to_n,
+            &self.lever_arm_b_m,
+            &self.r_s_to_b,
+            self.alpha_rad,
+            self.beta_rad,
+            self.range_m + self.range_zero_m,
+        )
+    }
+
+    /// Analytic Jacobian along the output axes `out` (`d x_out / d x_e`, e.g.
+    /// [`r_e_to_map_axes`]; rows are the output axes), from the georeferencing terms `t` of
+    /// this return (its rotations, lever arm, angles and range; velocity, body rate and
+    /// boresight come from `self`) and the local-level turn `dtheta_per_m`
+    /// ([`LocalLevel::dtheta_per_m`]). Every column is `R_n^e` or `R_b^e` times a vector, so
+    /// the output rotation is folded into those two matrices instead of applied to the 18
+    /// columns.
+    pub fn jacobian_in_axes(
+        &self,
+        out: &Matrix3<f64>,
+        dtheta_per_m: &Matrix3<f64>,
+        t: &ReturnTerms,
+    ) -> Jacobian {
+        let r_n_out = out * t.r_n_to_e;
+        let r_b_out = r_n_out * t.r_b_to_n;
         let r_s_b = self.r_s_to_b;
-        let rho = self.range_m + self.range_zero_m;
-        let u_s = beam_s(self.alpha_rad, self.beta_rad);
-        let x_s = u_s * rho;
-        let a_b = self.lever_arm_b_m + r_s_b * x_s;
-        let a_n = r_b_n * a_b;
+        let a_b = t.a_b_m;
+        let a_n = t.r_b_to_n * a_b;
         let mut j = Jacobian::zeros();
 
         // Position: R_n^e, plus the turn of n when lat/lon follow the displaced IMU.
-        let j_pos = r_n_e * (Matrix3::identity() - skew(&a_n) * local.dtheta_per_m);
+        let j_pos = r_n_out * (Matrix3::identity() - skew(&a_n) * dtheta_per_m);
         j.fixed_columns_mut::<3>(0).copy_from(&j_pos);
 
         // Attitude: dR/dk = R [u_k]x with u_r = x, u_p = Rx(r)^T y, u_h = R^T z.
-        let minus_rbe_ab = -r_b_e * skew(&a_b);
+        let minus_rbo_ab = -r_b_out * skew(&a_b);
         j.fixed_columns_mut::<3>(3)
-            .copy_from(&(minus_rbe_ab * zyx_axes(&r_b_n)));
+            .copy_from(&(minus_rbo_ab * zyx_axes(&t.r_b_to_n)));
 
-        j.fixed_columns_mut::<3>(6).copy_from(&r_b_e);
+        j.fixed_columns_mut::<3>(6).copy_from(&r_b_out);
 
         // Boresight: same structure on R_s^b acting on x_s.
-        let r_s_e = r_b_e * r_s_b;
+        let r_s_out = r_b_out * r_s_b;
         j.fixed_columns_mut::<3>(9)
-            .copy_from(&(-r_s_e * skew(&x_s) * zyx_axes(&r_s_b)));
+            .copy_from(&(-r_s_out * skew(&t.x_s_m) * zyx_axes(&r_s_b)));
 
         // Scanner: x_s = (rho + K) u_s(alpha, beta).
-        let (sa, ca) = self.alpha_rad.sin_cos();
-        let (sb, cb) = self.beta_rad.sin_cos();
+        let ((sa, ca), (sb, cb)) = (t.sin_cos_alpha, t.sin_cos_beta);
+        let rho = t.range_total_m;
         let dxs_dalpha = Vector3::new(ca, sa * sb, -sa * cb) * rho;
         let dxs_dbeta = Vector3::new(0.0, -ca * cb, -ca * sb) * rho;
-        j.set_column(12, &(r_s_e * dxs_dalpha));
-        j.set_column(13, &(r_s_e * dxs_dbeta));
-        let d_rho = r_s_e * u_s;
+        j.set_column(12, &(r_s_out * dxs_dalpha));
+        j.set_column(13, &(r_s_out * dxs_dbeta));
+        let d_rho = r_s_out * t.u_s();
         j.set_column(14, &d_rho);
         j.set_column(15, &d_rho);
 
         // Timing: the attitude turns with the body rate; the clock also moves the IMU.
-        let d_att = minus_rbe_ab * self.omega_b_radps;
+        let d_att = minus_rbo_ab * self.omega_b_radps;
         j.set_column(16, &(j_pos * self.v_n_mps + d_att));
         j.set_column(17, &d_att);
         j

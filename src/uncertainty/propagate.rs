@@ -134,6 +134,6 @@ pub fn propagate(
     dt_dclock: [f64; 2],
     r_e_to_map: &Matrix3<f64>,
 ) -> PointCovariance {
-    let j = r_e_to_map * geom.jacobian_e_in(local);
+    let j = geom.jacobian_in_axes(r_e_to_map, &local.dtheta_per_m, &geom.terms(local.r_n_to_e));
     covariance_of(&j, &inputs.sigmas(nav, dt_dclock))
 }

@@ -12,11 +12,15 @@
 use super::model::{Group, Input, PointGeometry, N_INPUTS};
 use super::propagate::UncertaintyInputs;
 use super::sobol::{FactorIndices, SaltelliDesign, SobolIndices, N_OUT};
-use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic};
+use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, r_n_to_e, Geodetic};
 use crate::geo::rotations::r_zyx;
 use crate::io::atomic::write_atomic;
+use crate::io::profiles::ProfileFile;
 use crate::pipeline::config::UncertaintyConfig;
-use crate::trajectory::NavSigma;
+use crate::plot::{Plot, PALETTE};
+use crate::sim::scanner::ScannerModel;
+use crate::sim::{files, simulate, Scenario, SimOptions};
+use crate::trajectory::{NavSigma, PoseCursor, Trajectory, TrajectoryOptions};
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
@@ -59,17 +63,43 @@ pub struct SensitivityConfig {
     /// Random seed.
     #[serde(default)]
     pub seed: u64,
-    /// INS sigmas ("estimated from INS" in Table 1).
-    pub ins: InsSigmaConfig,
+    /// INS sigmas ("estimated from INS" in Table 1). Required for flat ground; with
+    /// `[scenario]`, absent means the simulated SMRMSG at each return's time.
+    #[serde(default)]
+    pub ins: Option<InsSigmaConfig>,
     /// Timing sigmas (not in Table 1; used by every set).
     #[serde(default)]
     pub timing: TimingSigmaConfig,
-    /// Platform state.
-    pub platform: PlatformConfig,
-    /// Scanner mounting.
-    pub sensor: StudySensorConfig,
-    /// Points studied.
-    pub points: PointsConfig,
+    /// Platform state (flat ground).
+    #[serde(default)]
+    pub platform: Option<PlatformConfig>,
+    /// Scanner mounting (flat ground).
+    #[serde(default)]
+    pub sensor: Option<StudySensorConfig>,
+    /// Points studied (flat ground).
+    #[serde(default)]
+    pub points: Option<PointsConfig>,
+    /// Or: the returns of a simulated survey (instead of `[platform]`, `[sensor]`, `[points]`).
+    #[serde(default)]
+    pub scenario: Option<ScenarioPointsConfig>,
+}
+
+/// `[scenario]`: study returns of a survey simulated from a scenario file (docs/simulator.md),
+/// with their real ranges, beam directions and attitudes; the sensor is the scenario's
+/// configured one.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ScenarioPointsConfig {
+    /// Scenario file, relative to the study file (made absolute when loaded).
+    pub file: PathBuf,
+    /// Simulated duration (s), replacing the scenario's `duration_s`.
+    #[serde(default)]
+    pub duration_s: Option<f64>,
+    /// First and last range (m): split into `count` equal bins, one return per bin (the one
+    /// closest to the bin centre; bins without a return are left out).
+    pub range_m: [f64; 2],
+    /// Number of range bins.
+    pub count: usize,
 }
 
 /// `[ins]`.
@@ -168,6 +198,10 @@ pub struct PointResult {
     pub range_m: f64,
     /// Mirror angle (deg).
     pub beta_deg: f64,
+    /// Elevation of the beam above the local horizontal at the scanner (deg; negative: down).
+    pub beam_elevation_deg: f64,
+    /// The 1-sigma of every input at this point (model order, SI units).
+    pub sigmas: [f64; N_INPUTS],
     /// Linear 1-sigma along E, N, U and in 3D (m).
     pub sigma_enu_m: [f64; 4],
     /// Monte Carlo 1-sigma along E, N, U (m) from the Sobol base samples.
@@ -198,7 +232,9 @@ pub struct FactorSummary {
 pub struct SensitivityReport {
     /// The study file as read.
     pub config: SensitivityConfig,
-    /// The 1-sigma of every input used (model order; SI units, see docs/uncertainty.md).
+    /// The 1-sigma of every input at the first point (model order; SI units, see
+    /// docs/uncertainty.md); with SMRMSG sigmas the INS ones vary per point
+    /// ([`PointResult::sigmas`]).
     pub sigmas: Vec<(String, f64)>,
     /// Per point.
     pub points: Vec<PointResult>,
@@ -237,7 +273,12 @@ pub fn load_sensitivity(path: &Path) -> Result<SensitivityConfig> {
         .map_err(|e| Error::config(&name, "(syntax)", e.to_string()))?;
     let c: SensitivityConfig = serde_path_to_error::deserialize(de)
         .map_err(|e| Error::config(&name, e.path().to_string(), e.inner().message()))?;
+    let mut c = c;
     validate(&c).map_err(|(key, problem)| Error::config(&name, key, problem))?;
+    if let Some(sc) = c.scenario.as_mut() {
+        let dir = path.parent().unwrap_or(Path::new("."));
+        sc.file = dir.join(&sc.file);
+    }
     Ok(c)
 }
 
@@ -257,11 +298,11 @@ fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, Str
             "samples must be in 64..=4194304 and bootstrap 0 or >= 2".into(),
         ));
     }
-    let ins = c
-        .ins
-        .sigma_position_ned_m
-        .iter()
-        .chain(&c.ins.sigma_attitude_rph_deg);
+    let ins = c.ins.iter().flat_map(|i| {
+        i.sigma_position_ned_m
+            .iter()
+            .chain(&i.sigma_attitude_rph_deg)
+    });
     let t = &c.timing;
     let timing = [t.sigma_clock_time_s, t.sigma_attitude_latency_s];
     if !ins.chain(&timing).all(|s| s.is_finite() && *s >= 0.0) {
@@ -270,7 +311,22 @@ fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, Str
             "INS and timing sigmas must be finite and >= 0".into(),
         ));
     }
-    let p = &c.points;
+    match (&c.scenario, &c.platform, &c.sensor, &c.points) {
+        (Some(sc), None, None, None) => validate_scenario(sc),
+        (None, Some(_), Some(_), Some(p)) => {
+            if c.ins.is_none() {
+                return Err(("ins", "flat ground needs [ins]".into()));
+            }
+            validate_points(p)
+        }
+        _ => Err((
+            "scenario",
+            "give either [scenario] or all of [platform], [sensor], [points]".into(),
+        )),
+    }
+}
+
+fn validate_points(p: &PointsConfig) -> std::result::Result<(), (&'static str, String)> {
     let ok = p.scanner_height_m > 0.0
         && p.range_m[0] >= p.scanner_height_m
         && p.range_m[1] >= p.range_m[0]
@@ -285,21 +341,43 @@ fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, Str
     Ok(())
 }
 
+fn validate_scenario(s: &ScenarioPointsConfig) -> std::result::Result<(), (&'static str, String)> {
+    let ok = s.range_m[0] >= 0.0
+        && s.range_m[1] > s.range_m[0]
+        && s.range_m[1].is_finite()
+        && s.count >= 1
+        && s.duration_s.is_none_or(|d| d > 0.0 && d.is_finite());
+    if !ok {
+        return Err((
+            "scenario",
+            "need 0 <= range_m[0] < range_m[1], count >= 1 and duration_s > 0".into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Runs the study in `config_path` and writes into `out_dir`: `sensitivity_points.csv` (every
 /// point, factor and output), `share_vs_range.csv` (plot data: first-order, total and linear
 /// share of each factor against range), `sensitivity.json` (the [`SensitivityReport`]).
 pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<SensitivityReport> {
-    let config = load_sensitivity(config_path)?;
+    run_sensitivity_config(load_sensitivity(config_path)?, out_dir)
+}
+
+/// [`run_sensitivity`] for a study already loaded with [`load_sensitivity`] (and possibly
+/// changed, e.g. made smaller).
+pub fn run_sensitivity_config(
+    config: SensitivityConfig,
+    out_dir: &Path,
+) -> Result<SensitivityReport> {
     std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut report = study(config)?;
     let points_csv = out_dir.join("sensitivity_points.csv");
     write_atomic(&points_csv, points_table(&report).as_bytes())?;
     let plot_csv = out_dir.join("share_vs_range.csv");
     write_atomic(&plot_csv, share_vs_range_table(&report).as_bytes())?;
-    report.outputs = vec![points_csv, plot_csv.clone()];
-    report
-        .outputs
-        .extend(plot_share_against_range(&plot_csv, out_dir)?);
+    report.outputs = vec![points_csv, plot_csv];
+    let plots = plot_share_against_range(&report, out_dir)?;
+    report.outputs.extend(plots);
     let json = out_dir.join("sensitivity.json");
     report.outputs.push(json.clone());
     let text = serde_json::to_string_pretty(&report)
@@ -308,11 +386,78 @@ pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<Sensitivity
     Ok(report)
 }
 
-/// The PNG plots (share against range, one per group, like paper 003's scatter plots) from
-/// the plot data in `share_vs_range.csv`. The plotting module `kinescan::plot` is not merged
-/// yet: this is where its call goes; until then no PNG is written and the list is empty.
-fn plot_share_against_range(_plot_csv: &Path, _out_dir: &Path) -> Result<Vec<PathBuf>> {
-    Ok(Vec::new())
+/// Inputs drawn in the per-input plots: those whose linear share of the output reaches this.
+const PLOT_INPUT_MIN_SHARE: f64 = 0.1;
+
+/// The PNG plots of share against range, like paper 003's scatter plots, two per output
+/// ([`OUTPUTS`]): `share_vs_range_<output>.png` with the six groups and
+/// `share_vs_range_inputs_<output>.png` with the inputs whose linear share reaches 10% at
+/// some point (at most 8, largest first). Each factor is drawn in one colour: its first-order
+/// Sobol index at every point as markers, its analytic linear share as a line through the
+/// points in range order.
+fn plot_share_against_range(r: &SensitivityReport, out_dir: &Path) -> Result<Vec<PathBuf>> {
+    let mut order: Vec<&PointResult> = r.points.iter().collect();
+    order.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
+    let mut written = Vec::new();
+    for (k, output) in OUTPUTS.iter().enumerate() {
+        let series = |f: usize| -> [Vec<(f64, f64)>; 2] {
+            let pts = |v: &dyn Fn(&FactorRow) -> f64| {
+                order
+                    .iter()
+                    .map(|p| (p.range_m, v(&p.factors[f])))
+                    .collect()
+            };
+            [
+                pts(&|row| row.sobol[k].first),
+                pts(&|row| row.linear_share[k]),
+            ]
+        };
+        let groups: Vec<usize> = (N_INPUTS..N_INPUTS + Group::ALL.len()).collect();
+        let mut inputs: Vec<(usize, f64)> = (0..N_INPUTS)
+            .map(|i| {
+                (
+                    i,
+                    order
+                        .iter()
+                        .map(|p| p.factors[i].linear_share[k])
+                        .fold(0.0, f64::max),
+                )
+            })
+            .filter(|&(_, m)| m >= PLOT_INPUT_MIN_SHARE)
+            .collect();
+        inputs.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let inputs: Vec<usize> = inputs.iter().take(PALETTE.len()).map(|&(i, _)| i).collect();
+        for (what, factors, file) in [
+            ("groups", groups, format!("share_vs_range_{output}.png")),
+            (
+                "inputs",
+                inputs,
+                format!("share_vs_range_inputs_{output}.png"),
+            ),
+        ] {
+            if factors.is_empty() || order.is_empty() {
+                continue;
+            }
+            let title =
+                format!("Share of the {output} variance by {what} (S1 markers, linear lines)");
+            let mut plot = Plot::new(&title, "range (m)", "share of variance")
+                .size(1000, 700)
+                .y_range(0.0, 1.0);
+            for (c, &f) in factors.iter().enumerate() {
+                let [first, linear] = series(f);
+                let name = &order[0].factors[f].factor;
+                plot = plot
+                    .scatter(&format!("{name} S1"), &first)
+                    .color(PALETTE[c % PALETTE.len()])
+                    .line(&format!("{name} linear"), &linear)
+                    .color(PALETTE[c % PALETTE.len()]);
+            }
+            let path = out_dir.join(file);
+            plot.save_png(&path)?;
+            written.push(path);
+        }
+    }
+    Ok(written)
 }
 
 /// The factors studied: each input alone, then each group.
@@ -326,16 +471,20 @@ pub fn study_factors() -> (Vec<String>, Vec<Vec<usize>>) {
     (names, sets)
 }
 
-/// The geometry of the study point at range `rho` (m).
-pub fn study_point(c: &SensitivityConfig, rho: f64) -> PointGeometry {
-    let p = &c.platform;
+/// The geometry of a flat-ground study point at range `rho` (m): `beta = acos(height / rho)`.
+pub fn flat_ground_point(
+    p: &PlatformConfig,
+    sensor: &StudySensorConfig,
+    scanner_height_m: f64,
+    rho: f64,
+) -> PointGeometry {
     let g = Geodetic {
         lat_rad: p.lat_deg.to_radians(),
         lon_rad: p.lon_deg.to_radians(),
         h_m: p.h_m,
     };
     let [r, pitch, h] = p.rph_deg.map(f64::to_radians);
-    let [bx, by, bz] = c.sensor.boresight_deg.map(f64::to_radians);
+    let [bx, by, bz] = sensor.boresight_deg.map(f64::to_radians);
     let (sh, ch) = h.sin_cos();
     PointGeometry {
         r_e_m: geodetic_to_ecef(g),
@@ -345,24 +494,101 @@ pub fn study_point(c: &SensitivityConfig, rho: f64) -> PointGeometry {
         r_b_to_n: r_zyx(r, pitch, h),
         v_n_mps: Vector3::new(ch, sh, 0.0) * p.speed_mps,
         omega_b_radps: Vector3::from(p.body_rate_deg_s.map(f64::to_radians)),
-        lever_arm_b_m: c.sensor.lever_arm_b_m.into(),
+        lever_arm_b_m: sensor.lever_arm_b_m.into(),
         r_s_to_b: r_zyx(bx, by, bz),
-        alpha_rad: c.sensor.alpha0_deg.to_radians(),
-        beta_rad: (c.points.scanner_height_m / rho).min(1.0).acos(),
+        alpha_rad: sensor.alpha0_deg.to_radians(),
+        beta_rad: (scanner_height_m / rho).min(1.0).acos(),
         range_m: rho,
         range_zero_m: 0.0,
     }
 }
 
-/// The 1-sigma of every input for the study (model order).
-pub fn study_sigmas(c: &SensitivityConfig) -> Result<[f64; N_INPUTS]> {
+/// The returns of a simulated survey studied for `[scenario]`: the scenario is simulated into
+/// a temporary directory, the returns are binned by range, and each chosen return gets the
+/// pipeline's geometry: its time from the configured clock (SPEC 2), the pose of the
+/// navigation solution (`trajectory.sbet`) at that time, the configured sensor, and the
+/// SMRMSG sigmas at that time.
+pub fn scenario_points(s: &ScenarioPointsConfig) -> Result<Vec<(PointGeometry, NavSigma)>> {
+    let dir = tempfile::tempdir().map_err(|e| Error::io(Path::new("(temporary directory)"), e))?;
+    let opts = SimOptions {
+        duration_s: s.duration_s,
+        ..SimOptions::default()
+    };
+    simulate(&s.file, dir.path(), &opts)?;
+    let model = ScannerModel::new(&Scenario::load(&s.file)?);
+    let traj = Trajectory::open(
+        &dir.path().join(files::SBET),
+        Some(&dir.path().join(files::SMRMSG)),
+        TrajectoryOptions::default(),
+    )?;
+    let profiles = ProfileFile::open(&dir.path().join(files::PROFILES))?;
+    let chosen = pick_by_range(&profiles, s.range_m, s.count);
+    let mut poses = PoseCursor::new(&traj, 0.0, 0.0);
+    let mut nav_sigmas = traj
+        .sigma_cursor()
+        .ok_or_else(|| Error::Invalid("the simulated survey has no SMRMSG".into()))?;
+    let gap = |t: f64| Error::Invalid(format!("simulated return at {t} s has no pose or sigma"));
+    let mut out = Vec::with_capacity(chosen.len());
+    for i in chosen {
+        let r = profiles.get(i);
+        let t = if profiles.columns().time {
+            model.clock.time_from_profile_tag(r.time_s, r.beta_rad)
+        } else {
+            model.clock.time_of(r.profile, r.beta_rad)
+        };
+        let pose = poses.at(t).map_err(|_| gap(t))?;
+        let nav = nav_sigmas.at(t).map_err(|_| gap(t))?;
+        let alpha = model.configured.alpha0_rad;
+        let geom = PointGeometry::from_pose(&pose, &model.configured, alpha, r.beta_rad, r.range_m);
+        out.push((geom, nav));
+    }
+    if out.is_empty() {
+        return Err(Error::Invalid(format!(
+            "{}: no simulated return between {} and {} m",
+            s.file.display(),
+            s.range_m[0],
+            s.range_m[1]
+        )));
+    }
+    Ok(out)
+}
+
+/// Indices (in file order) of the returns closest to the centres of `count` equal range bins
+/// over `range_m`, one per non-empty bin.
+fn pick_by_range(profiles: &ProfileFile, range_m: [f64; 2], count: usize) -> Vec<usize> {
+    let width = (range_m[1] - range_m[0]) / count as f64;
+    let mut best: Vec<Option<(f64, usize)>> = vec![None; count];
+    for i in 0..profiles.len() {
+        let rho = profiles.get(i).range_m;
+        let bin = ((rho - range_m[0]) / width).floor();
+        if !(rho > 0.0 && bin >= 0.0 && bin < count as f64) {
+            continue;
+        }
+        let b = bin as usize;
+        let off = (rho - range_m[0] - (b as f64 + 0.5) * width).abs();
+        if best[b].is_none_or(|(o, _)| off < o) {
+            best[b] = Some((off, i));
+        }
+    }
+    let mut idx: Vec<usize> = best.into_iter().flatten().map(|(_, i)| i).collect();
+    idx.sort_unstable();
+    idx
+}
+
+/// The 1-sigma of every input for the study (model order): the sigma set, the INS sigmas of
+/// `[ins]` if given, else `nav` (SMRMSG at the return), and `[timing]`.
+pub fn study_sigmas(c: &SensitivityConfig, nav: Option<&NavSigma>) -> Result<[f64; N_INPUTS]> {
     let inputs = c
         .sigma_set
         .inputs(c.custom.as_ref())
         .ok_or_else(|| Error::Invalid("sigma_set = \"custom\" needs [custom]".into()))?;
-    let nav = NavSigma {
-        pos_ned_m: c.ins.sigma_position_ned_m.into(),
-        att_rph_rad: c.ins.sigma_attitude_rph_deg.map(f64::to_radians).into(),
+    let nav = match (&c.ins, nav) {
+        (Some(ins), _) => NavSigma {
+            pos_ned_m: ins.sigma_position_ned_m.into(),
+            att_rph_rad: ins.sigma_attitude_rph_deg.map(f64::to_radians).into(),
+        },
+        (None, Some(nav)) => *nav,
+        (None, None) => return Err(Error::Invalid("no INS sigmas: [ins] is missing".into())),
     };
     let mut s = inputs.sigmas(&nav, [0.0, 0.0]);
     if c.sigma_set != SigmaSet::Custom {
@@ -370,6 +596,32 @@ pub fn study_sigmas(c: &SensitivityConfig) -> Result<[f64; N_INPUTS]> {
     }
     s[Input::ClockTime as usize] = s[Input::ClockTime as usize].hypot(c.timing.sigma_clock_time_s);
     Ok(s)
+}
+
+/// The study's points: flat ground, or the chosen returns of `[scenario]` with their SMRMSG
+/// sigmas.
+fn study_geometries(c: &SensitivityConfig) -> Result<Vec<(PointGeometry, Option<NavSigma>)>> {
+    if let Some(sc) = &c.scenario {
+        let pts = scenario_points(sc)?;
+        return Ok(pts.into_iter().map(|(g, n)| (g, Some(n))).collect());
+    }
+    let (Some(platform), Some(sensor), Some(p)) = (&c.platform, &c.sensor, &c.points) else {
+        return Err(Error::Invalid("no points: [points] is missing".into()));
+    };
+    let rho = |k: usize| {
+        let w = if p.count > 1 {
+            k as f64 / (p.count - 1) as f64
+        } else {
+            0.0
+        };
+        p.range_m[0] + w * (p.range_m[1] - p.range_m[0])
+    };
+    Ok((0..p.count)
+        .map(|k| {
+            let g = flat_ground_point(platform, sensor, p.scanner_height_m, rho(k));
+            (g, None)
+        })
+        .collect())
 }
 
 /// `R_e^enu` at the nominal point of `geom`.
@@ -390,30 +642,23 @@ pub fn enu_error_model(geom: &PointGeometry) -> impl Fn(&[f64]) -> [f64; N_OUT] 
 }
 
 fn study(config: SensitivityConfig) -> Result<SensitivityReport> {
-    let sigmas = study_sigmas(&config)?;
     let (names, sets) = study_factors();
-    let p = &config.points;
-    let mut points = Vec::with_capacity(p.count);
-    for k in 0..p.count {
-        let w = if p.count > 1 {
-            k as f64 / (p.count - 1) as f64
-        } else {
-            0.0
-        };
-        let rho = p.range_m[0] + w * (p.range_m[1] - p.range_m[0]);
-        let geom = study_point(&config, rho);
+    let mut points = Vec::new();
+    for (k, (geom, nav)) in study_geometries(&config)?.iter().enumerate() {
+        let sigmas = study_sigmas(&config, nav.as_ref())?;
         let seed = config.seed.wrapping_add(k as u64);
         let design = SaltelliDesign::new(&sigmas, sets.clone(), config.samples, seed);
         let sobol = design
-            .evaluate(enu_error_model(&geom))
+            .evaluate(enu_error_model(geom))
             .analyze(config.bootstrap, seed);
-        let j = r_e_to_enu_at_point(&geom) * geom.jacobian_e();
-        points.push(point_result(&geom, &j, &sigmas, &names, &sets, &sobol));
+        let j = r_e_to_enu_at_point(geom) * geom.jacobian_e();
+        points.push(point_result(geom, &j, &sigmas, &names, &sets, &sobol));
     }
     let summary = summarise(&names, &points);
+    let first = points.first().map_or([0.0; N_INPUTS], |p| p.sigmas);
     let sigmas = Input::ALL
         .iter()
-        .map(|i| (i.name().to_string(), sigmas[*i as usize]))
+        .map(|i| (i.name().to_string(), first[*i as usize]))
         .collect();
     Ok(SensitivityReport {
         config,
@@ -422,6 +667,15 @@ fn study(config: SensitivityConfig) -> Result<SensitivityReport> {
         summary,
         outputs: Vec::new(),
     })
+}
+
+/// Elevation of the beam of `geom` above the local horizontal at the scanner (rad).
+fn beam_elevation_rad(geom: &PointGeometry) -> f64 {
+    let x = geom.point_e(&[0.0; N_INPUTS]);
+    let r_b_e = r_n_to_e(geom.lat_rad, geom.lon_rad) * geom.r_b_to_n;
+    let scanner = geom.r_e_m + r_b_e * geom.lever_arm_b_m;
+    let d = r_e_to_enu_at_point(geom) * (x - scanner);
+    d.z.atan2(d.xy().norm())
 }
 
 fn point_result(
@@ -463,6 +717,8 @@ fn point_result(
     PointResult {
         range_m: geom.range_m,
         beta_deg: geom.beta_rad.to_degrees(),
+        beam_elevation_deg: beam_elevation_rad(geom).to_degrees(),
+        sigmas: *sigmas,
         sigma_enu_m: std::array::from_fn(|k| var[k].sqrt()),
         sigma_enu_mc_m: sobol.variance.map(f64::sqrt),
         factors,
