@@ -131,3 +131,16 @@ fn pipeline_examples_in_the_docs_are_valid() {
     }
     assert!(checked >= 1, "the README's worked example must be checked");
 }
+
+#[test]
+fn sensitivity_studies_in_the_docs_run() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/sensitivity");
+    for name in ["parking_lot_expected.toml", "parking_lot_ideal.toml"] {
+        let out = tempfile::tempdir().unwrap();
+        let report =
+            kinescan::uncertainty::sensitivity::run_sensitivity(&root.join(name), out.path())
+                .unwrap_or_else(|e| panic!("docs/sensitivity/{name}: {e}"));
+        assert!(out.path().join("sensitivity.json").exists(), "{name}");
+        drop(report);
+    }
+}

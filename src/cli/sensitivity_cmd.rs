@@ -8,8 +8,8 @@ use std::path::PathBuf;
 /// shares of the georeferenced point to every input (docs/uncertainty.md).
 #[derive(Args)]
 #[command(after_help = "Examples:
-  kinescan sensitivity docs/sensitivity/parking_lot_expected.toml --out work/sens_expected
-  kinescan sensitivity docs/sensitivity/parking_lot_ideal.toml --out work/sens_ideal")]
+  kinescan sensitivity pipelines/sensitivity_parking_lot_expected.toml --out work/sens_expected
+  kinescan sensitivity pipelines/sensitivity_parking_lot_ideal.toml --out work/sens_ideal")]
 pub struct SensitivityArgs {
     /// Study file (TOML).
     config: PathBuf,
