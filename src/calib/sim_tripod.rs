@@ -14,6 +14,7 @@
 //! `site_rotation` selects SPEC's order (default) or the order of the paper's printed matrix.
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
+use super::ellipse::{beam, CutShape};
 use super::files::{self, write_atomic};
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
 use crate::plot::Plot;
@@ -23,6 +24,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -58,6 +60,14 @@ pub struct TripodScenario {
     pub sigma_attitude_deg: [f64; 3],
     /// Monte Carlo trials run by [`run_tripod_simulation`] (0: none).
     pub monte_carlo_trials: usize,
+    /// Leg radius for the raw scans (m).
+    pub leg_radius_m: f64,
+    /// Range noise of the raw scans, 1 sigma (m).
+    pub sigma_range_m: f64,
+    /// Mirror-angle step of the raw scans (deg); a full turn is scanned.
+    pub beta_step_deg: f64,
+    /// Largest range (m); beams that hit nothing nearer are missing returns (range 0).
+    pub max_range_m: f64,
 }
 
 impl Default for TripodScenario {
@@ -77,6 +87,10 @@ impl Default for TripodScenario {
             sigma_centre_m: 0.001,
             sigma_attitude_deg: [0.0, 0.0, 0.0],
             monte_carlo_trials: 0,
+            leg_radius_m: 0.025,
+            sigma_range_m: 0.002,
+            beta_step_deg: 0.1,
+            max_range_m: 30.0,
         }
     }
 }
@@ -156,6 +170,58 @@ impl TripodScenario {
         self.calibration_setup()
             .cos_leg_angles
             .map(|c| c.acos().to_degrees())
+    }
+
+    /// Raw returns of site `k` with attitude `site_r_b_to_n(k)`: each beam is cast against the
+    /// three leg cuts (ellipses, [`CutShape::of_leg`]) and the floor (the plane through the
+    /// feet, normal to the axis); nearest hit, plus Gaussian range noise `sigma_range_m`;
+    /// range 0 (missing) beyond `max_range_m`. Intensity: 100 on a leg, 30 on the floor.
+    pub fn simulate_scan(&self, k: usize, rng: &mut ChaCha8Rng) -> Result<Vec<(f64, f64, f64)>> {
+        let noise = Normal::new(0.0, self.sigma_range_m)
+            .map_err(|e| Error::config("tripod scenario", "sigma_range_m", e.to_string()))?;
+        if !(self.beta_step_deg > 0.0 && self.leg_radius_m > 0.0) {
+            return Err(Error::config(
+                "tripod scenario",
+                "beta_step_deg / leg_radius_m",
+                "must be > 0",
+            ));
+        }
+        let r_s_n = self.site_r_b_to_n(k) * self.true_r_s_to_b();
+        let centres = self.true_centres(k)?;
+        let legs_s = self.legs_n().map(|e| r_s_n.transpose() * e);
+        let origin =
+            self.axis() * self.cut_depth_m - r_s_n * Vector3::z() * self.scanner_distance_m;
+        let floor_depth = self.leg_length_m * self.leg_from_axis_deg.to_radians().cos();
+        let n_beams = (360.0 / self.beta_step_deg).round() as usize;
+        let mut out = Vec::with_capacity(n_beams);
+        for j in 0..n_beams {
+            let beta = -PI + j as f64 * self.beta_step_deg.to_radians();
+            let u = beam(beta);
+            let mut hit: Option<(f64, f64)> = None;
+            for (c, l) in centres.iter().zip(&legs_s) {
+                let shape = CutShape::of_leg(l, self.leg_radius_m).ok_or_else(|| {
+                    Error::Invalid("tripod scenario: a leg lies in the scan plane".into())
+                })?;
+                if let Some(t) = shape.beam_hit(c, &u) {
+                    if hit.is_none_or(|(h, _)| t < h) {
+                        hit = Some((t, 100.0));
+                    }
+                }
+            }
+            let dir_n = r_s_n * Vector3::new(0.0, u.x, u.y);
+            let along = dir_n.dot(&self.axis());
+            if along > 1e-9 {
+                let t = (floor_depth - origin.dot(&self.axis())) / along;
+                if t > 0.0 && hit.is_none_or(|(h, _)| t < h) {
+                    hit = Some((t, 30.0));
+                }
+            }
+            out.push(match hit {
+                Some((t, i)) if t < self.max_range_m => (beta, t + noise.sample(rng), i),
+                _ => (beta, 0.0, 0.0),
+            });
+        }
+        Ok(out)
     }
 
     /// Noise-free ellipse centres `(y_s, z_s)` of the three legs at site `k` (m).
@@ -376,6 +442,30 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
         sc.nominal_boresight_deg
     );
     write_atomic(&out_dir.join("calib_boresight.toml"), cfg.as_bytes())?;
+    let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x5ca7);
+    let mut scans = String::from("site,beta_rad,range_m,intensity\n");
+    for s in sites {
+        for (beta, range, intensity) in sc.simulate_scan(s.site as usize - 1, &mut rng)? {
+            let _ = writeln!(scans, "{},{beta:.9},{range:.5},{intensity}", s.site);
+        }
+    }
+    write_atomic(&out_dir.join("tripod_scans.csv"), scans.as_bytes())?;
+    let cfg_scans = cfg
+        .replace(
+            "centres = \"tripod_centres.csv\"",
+            "scans = \"tripod_scans.csv\"",
+        )
+        .replace(
+            "\n\n[scanner]\n",
+            &format!(
+                "\nleg_radius_m = {}\n\n[scanner]\nsigma_range_m = {}\n",
+                sc.leg_radius_m, sc.sigma_range_m
+            ),
+        );
+    write_atomic(
+        &out_dir.join("calib_boresight_scans.toml"),
+        cfg_scans.as_bytes(),
+    )?;
     let truth = zyx_angles(&sc.true_r_s_to_b());
     files::write_json(
         &out_dir.join("truth.json"),
