@@ -158,3 +158,69 @@ fn boresight_from_simulated_scans() {
     }
     println!("variance factor {:.3}", r.variance_factor);
 }
+
+/// The scan chain's predicted boresight sigma is right: over repeated scan realisations of the
+/// default scenario (2 mm range noise, 2.5 cm legs, 0.1 deg steps), the misalignment error
+/// divided by its predicted sigma has RMS ~1 and mean ~0 per angle.
+#[test]
+fn scan_chain_boresight_errors_match_predicted_sigma() {
+    use kinescan::calib::boresight::{estimate_boresight, TripodSite};
+    use kinescan::calib::ellipse::fit_site_centres;
+    use kinescan::calib::sim_tripod::TripodScenario;
+    use kinescan::geo::rotations::r_b_to_n;
+    let sc = TripodScenario::default();
+    let setup = sc.calibration_setup();
+    let model = LegScanModel {
+        leg_radius_m: sc.leg_radius_m,
+        sigma_range_m: sc.sigma_range_m,
+        range_zero_error_m: 0.0,
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(21);
+    let trials = 100;
+    let mut z = Vec::new();
+    for _ in 0..trials {
+        let mut reference = None;
+        let mut sites = Vec::new();
+        for k in 0..sc.sites_deg.len() {
+            let returns: Vec<ScanReturn> = sc
+                .simulate_scan(k, &mut rng)
+                .unwrap()
+                .into_iter()
+                .map(|(beta_rad, range_m, _)| ScanReturn { beta_rad, range_m })
+                .collect();
+            let att = sc.site_attitude_rad(k);
+            let r_b_n = r_b_to_n(att[0], att[1], att[2]);
+            let f = fit_site_centres(
+                k as u64 + 1,
+                &returns,
+                &model,
+                &setup,
+                &r_b_n,
+                reference.as_ref(),
+            )
+            .unwrap();
+            reference.get_or_insert(f.legs_n_prior);
+            sites.push(TripodSite {
+                site: k as u64 + 1,
+                centres_s_m: [0, 1, 2].map(|i| f.fits[i].centre_s_m),
+                cov_centre_s_m2: [0, 1, 2].map(|i| f.fits[i].cov_s_m2),
+                attitude_rad: att,
+                sigma_attitude_rad: [0.0; 3],
+            });
+        }
+        let r = estimate_boresight(&sites, &setup).unwrap();
+        z.push([0, 1, 2].map(|k| {
+            (r.misalignment_deg[k] - sc.misalignment_deg[k]) / r.sigma_misalignment_deg[k]
+        }));
+    }
+    for k in 0..3 {
+        let mean = z.iter().map(|v| v[k]).sum::<f64>() / trials as f64;
+        let rms = (z.iter().map(|v| v[k] * v[k]).sum::<f64>() / trials as f64).sqrt();
+        println!("angle {k}: mean error/sigma {mean:.3}, rms error/sigma {rms:.3}");
+        // 100 trials: the RMS of unit normals has sd ~ 1/sqrt(200) = 7 %; the mean sd 0.1.
+        // +-20 % is ~3 sd (the brief's 20 %); |mean| < 0.35 is 3.5 sd (a bias of a third of
+        // a sigma would fail).
+        assert!((rms - 1.0).abs() < 0.2, "angle {k}: rms {rms}");
+        assert!(mean.abs() < 0.35, "angle {k}: mean {mean}");
+    }
+}

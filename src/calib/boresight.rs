@@ -30,7 +30,7 @@ use super::files::{self, CsvTable};
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
 use crate::{Error, Result};
-use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -52,8 +52,9 @@ pub struct TripodSite {
     pub site: u64,
     /// Ellipse centres `(y_s, z_s)` (m) of legs 1, 2, 3 in the scan plane.
     pub centres_s_m: [Vector2<f64>; 3],
-    /// 1-sigma in-plane isotropic uncertainty of each centre (m).
-    pub sigma_centre_m: [f64; 3],
+    /// In-plane covariance of each centre, `(y_s, z_s)` (m^2); a `centres` file gives
+    /// `sigma_m^2 I`, a fit from `scans` its full covariance.
+    pub cov_centre_s_m2: [Matrix2<f64>; 3],
     /// IMU roll, pitch, heading (rad).
     pub attitude_rad: [f64; 3],
     /// 1-sigma of the attitude angles (rad).
@@ -262,7 +263,7 @@ fn prepare_site(s: &TripodSite, setup: &BoresightSetup) -> Result<SiteData> {
     .map_err(|e| Error::Invalid(format!("boresight: site {}: {e}", s.site)))?;
     let cov_legs_s = leg_covariance_s(
         &s.centres_s_m,
-        &s.sigma_centre_m,
+        &s.cov_centre_s_m2,
         setup.cos_leg_angles,
         &sol,
     )?;
@@ -569,7 +570,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
         out.push(TripodSite {
             site,
             centres_s_m: l.map(|x| x.0),
-            sigma_centre_m: l.map(|x| x.1),
+            cov_centre_s_m2: l.map(|x| Matrix2::identity() * x.1 * x.1),
             attitude_rad: att,
             sigma_attitude_rad: sig,
         });
@@ -624,10 +625,8 @@ fn attitude_error(attitudes: &Path, line: usize, site: u64, what: &str) -> Error
 }
 
 /// Reads raw static scans `site,beta_rad,range_m,intensity` and the site attitudes, and fits
-/// each site's ellipse centres ([`fit_site_centres`]; sites in id order, the legs labelled
-/// consistently with the first site's). A centre's isotropic sigma is the square
-/// root of the largest eigenvalue of its fitted covariance (conservative: the fit is more
-/// precise across the beam than along it).
+/// each site's ellipse centres with their fitted covariances ([`fit_site_centres`]; sites in
+/// id order, the legs labelled consistently with the first site's).
 pub fn read_scan_sites(
     scans: &Path,
     attitudes: &Path,
@@ -666,8 +665,7 @@ pub fn read_scan_sites(
         out.push(TripodSite {
             site,
             centres_s_m: [0, 1, 2].map(|i| fits[i].centre_s_m),
-            sigma_centre_m: [0, 1, 2]
-                .map(|i| fits[i].cov_s_m2.symmetric_eigenvalues().max().sqrt()),
+            cov_centre_s_m2: [0, 1, 2].map(|i| fits[i].cov_s_m2),
             attitude_rad: att,
             sigma_attitude_rad: sig,
         });

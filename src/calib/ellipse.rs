@@ -5,11 +5,12 @@
 //!
 //! **Clustering.** Returns are sorted by `beta` and split into runs wherever two neighbours
 //! differ in range by more than `jump = max(4 r, 10 sigma_range)` or a return is missing. A run
-//! is a leg candidate when it has `>= MIN_LEG_RETURNS` returns, its chord is at most `8 r` (a leg
-//! cut at up to ~75 deg from its normal section) and it is in the foreground: on both sides the
-//! neighbour is missing or farther by more than `jump` (a leg occludes what is behind it; a
-//! piece of ground or wall between two legs has nearer neighbours, a long ground run is too
-//! wide). The three candidates with the most returns are the legs; fewer than three is an error.
+//! is a leg candidate when it has `>= MIN_LEG_RETURNS` returns, its chord is at most
+//! `MAX_CHORD_RADII r` (the cut of a leg up to ~84 deg from its normal section is an ellipse
+//! up to `2 r / cos 84 deg` long) and it is in the foreground: on both sides the neighbour is
+//! missing or farther by more than `jump` (a leg occludes what is behind it; a piece of ground
+//! or wall between two legs has nearer neighbours, a long ground run is too wide; ground seen
+//! at grazing incidence breaks into runs shorter than `MIN_LEG_RETURNS`). The three candidates with the most returns are the legs; fewer than three is an error.
 //!
 //! **Fit.** The plane cuts a cylinder of radius `r` in an ellipse with minor semi-axis `r`
 //! across the leg's in-plane direction and major semi-axis `r / |cos gamma|` along it (`gamma`
@@ -31,6 +32,8 @@ use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// Fewest returns (before the two edge returns are dropped) for a leg candidate.
 pub const MIN_LEG_RETURNS: usize = 6;
+/// Longest leg run, in leg radii.
+pub const MAX_CHORD_RADII: f64 = 20.0;
 
 /// One return of a static scan (SPEC 6 fields).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -175,7 +178,7 @@ pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[
         .into_iter()
         .filter(|&(s, e)| {
             e - s >= MIN_LEG_RETURNS
-                && (point(e - 1) - point(s)).norm() <= 8.0 * m.leg_radius_m
+                && (point(e - 1) - point(s)).norm() <= MAX_CHORD_RADII * m.leg_radius_m
                 && behind(s, s.checked_sub(1))
                 && behind(e - 1, (e < rs.len()).then_some(e))
         })
@@ -191,7 +194,7 @@ pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[
             "tripod scan: site {site}: the scan plane must cut three legs, found {} leg \
              cross-section(s) (runs of >= {MIN_LEG_RETURNS} foreground returns at most {:.3} m wide)",
             cands.len(),
-            8.0 * m.leg_radius_m
+            MAX_CHORD_RADII * m.leg_radius_m
         )));
     }
     cands.sort_by_key(|c| std::cmp::Reverse(c.beams.len()));

@@ -19,7 +19,7 @@ use super::files::{self, write_atomic};
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
 use crate::plot::Plot;
 use crate::{Error, Result};
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -267,7 +267,7 @@ pub fn simulate_sites(sc: &TripodScenario, rng: &mut ChaCha8Rng) -> Result<Vec<T
         out.push(TripodSite {
             site: k as u64 + 1,
             centres_s_m: centres,
-            sigma_centre_m: [sc.sigma_centre_m; 3],
+            cov_centre_s_m2: [Matrix2::identity() * sc.sigma_centre_m.powi(2); 3],
             attitude_rad,
             sigma_attitude_rad: sig_att,
         });
@@ -423,7 +423,7 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
                 i + 1,
                 p.x,
                 p.y,
-                s.sigma_centre_m[i]
+                (0.5 * s.cov_centre_s_m2[i].trace()).sqrt()
             );
         }
         let [r, p, h] = s.attitude_rad.map(f64::to_degrees);
