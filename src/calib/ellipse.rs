@@ -21,9 +21,15 @@
 //! `sigma_range^2 (J^T J)^-1`. The first and last return of a run (grazing, mixed-pixel edges)
 //! are dropped. The shape comes from the tripod itself: a start from 10 steps with a circle of
 //! radius `r`, then the tripod solution's leg directions give each ellipse, and the centres are
-//! refitted, until they move by less than 0.1 um ([`fit_site_centres`]). A circle on an elongated cut is biased by up to
-//! `a - r` along the major axis (the near side of the ellipse is flatter than the circle), which
-//! the refit removes; the remaining bias is from the leg-direction error (second order).
+//! refitted, until they move by less than 0.1 um ([`fit_site_centres`]). A circle alone is
+//! not good enough: noise-free, a circle of radius `r = 25 mm` fitted to the near side of a cut
+//! with `a / r = 1.2` is off by 3.6-4.7 mm, with `a / r = 4` by 12 mm or does not converge (the
+//! near side of an ellipse is flatter than the circle). With the shape from the tripod the
+//! remaining bias is second order in the leg-direction error, below the test's resolution
+//! (a third of the centre sigma, `tests/calib_tripod_scans.rs`).
+//!
+//! Range noise only: the covariance ignores beam-angle noise and the leg radius's tolerance
+//! (a radius error of `dr` shifts every centre by ~`dr` along the mean beam).
 
 use super::boresight::BoresightSetup;
 use super::tripod::solve_site;

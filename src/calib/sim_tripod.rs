@@ -5,7 +5,8 @@
 //! given attitude; the scanner (true boresight `Rz Ry Rx(misalignment) * R_nom`) is placed so
 //! that its beam `beta = 0` crosses the tripod axis `cut_depth_m` below the apex at
 //! `scanner_distance_m`; its scan plane cuts the three legs at the ellipse centres, which get
-//! isotropic Gaussian in-plane noise `sigma_centre_m`. Defaults are the paper's simulation:
+//! isotropic Gaussian in-plane noise `sigma_centre_m`; the raw returns of each site's scan
+//! ([`TripodScenario::simulate_scan`]) are written too, for the centre fit from scans. Defaults are the paper's simulation:
 //! legs at 60 deg, sites (roll, pitch, heading) = (-20, 0, 30), (0, 20, 120), (20, -20, 240) deg,
 //! and a scanner whose scan plane is horizontal in the body (`R_nom`: mirror axis `x_s` along
 //! body down, `beta = 0` forward; SPEC angles (0, -90, 180) deg), which the paper's sites need:
@@ -408,7 +409,10 @@ pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Resu
 }
 
 /// Writes one realisation as a lab would record it (`tripod_centres.csv`, `tripod_sites.csv`),
-/// the calibration config `calib_boresight.toml` that reads them and `truth.json`.
+/// the calibration config `calib_boresight.toml` that reads them, the raw returns of each
+/// site `tripod_scans.csv` (`site,beta_rad,range_m,intensity`, [`TripodScenario::simulate_scan`],
+/// seeded from `seed`) with `calib_boresight_scans.toml` that reads those instead of the
+/// centres, and `truth.json`.
 pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Path) -> Result<()> {
     let mut c = String::from("site,leg,y_s_m,z_s_m,sigma_m\n");
     let mut a = String::from(
@@ -480,8 +484,9 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
 /// `kinescan simulate` for the tripod (paper 002, section 5): reads a [`TripodScenario`] TOML at
 /// `config_path` (unknown keys refused) and writes atomically into `out_dir` one realisation as
 /// a lab records it (`tripod_centres.csv`: ellipse centres in the scan plane, m;
-/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg), the calibration config
-/// `calib_boresight.toml` and `truth.json` ([`write_tripod_run`]). With
+/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg; `tripod_scans.csv`: raw returns),
+/// the calibration configs `calib_boresight.toml` (centres), `calib_boresight_scans.toml`
+/// (scans) and `truth.json` ([`write_tripod_run`]). With
 /// `monte_carlo_trials > 0` it also runs the Monte Carlo and writes its outputs
 /// ([`write_monte_carlo_outputs`]: JSON summary, per-trial errors, histogram CSV and one PNG per
 /// angle) and returns the serialisable summary (errors in deg, misalignment about body x, y, z);
