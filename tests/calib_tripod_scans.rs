@@ -224,3 +224,28 @@ fn scan_chain_boresight_errors_match_predicted_sigma() {
         assert!(mean.abs() < 0.35, "angle {k}: mean {mean}");
     }
 }
+
+/// A leg straddling `beta = +-pi` (straight behind the scanner's `beta = 0`) is one run, not two.
+#[test]
+fn leg_across_beta_pi_stays_whole() {
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let behind = (
+        Vector2::new(0.0, -0.8),
+        CutShape::circle(MODEL.leg_radius_m),
+    );
+    let legs = [behind, three_legs()[0], three_legs()[2]];
+    let returns = scan(&legs, Some(3.0), &mut rng);
+    let runs = leg_runs(2, &returns, &MODEL).unwrap();
+    let run = runs
+        .iter()
+        .find(|r| r.beams[0].y < 0.0)
+        .expect("the leg behind the scanner is one of the three");
+    // Whole: a 25 mm leg at 0.8 m spans ~3.6 deg, 36 returns at 0.1 deg (34 after the edges).
+    assert!(run.beams.len() > 30, "{} returns", run.beams.len());
+    let f = fit_leg_centre(run, &behind.1, &MODEL).unwrap();
+    assert!(
+        (f.centre_s_m - behind.0).norm() < 0.005,
+        "{:?}",
+        f.centre_s_m
+    );
+}

@@ -3,8 +3,10 @@
 //! Frame: scanner frame `s`, `alpha0 = 0`: a return `(beta, rho)` is the in-plane point
 //! `(rho + K) * (-sin beta, cos beta)` in `(y_s, z_s)` (m), SPEC 3.
 //!
-//! **Clustering.** Returns are sorted by `beta` and split into runs wherever two neighbours
-//! differ in range by more than `jump = max(4 r, 10 sigma_range)` or a return is missing. A run
+//! **Clustering.** Returns are sorted by `beta` (cyclically: a leg across `beta = +-pi` stays
+//! whole) and split into runs wherever two neighbours differ in range by more than
+//! `jump = max(4 r, 10 sigma_range)`, a return is missing, or `beta` jumps by more than twice
+//! the median step. A run
 //! is a leg candidate when it has `>= MIN_LEG_RETURNS` returns, its chord is at most
 //! `MAX_CHORD_RADII r` (the cut of a leg up to ~84 deg from its normal section is an ellipse
 //! up to `2 r / cos 84 deg` long) and it is in the foreground: on both sides the neighbour is
@@ -153,12 +155,43 @@ pub fn beam(beta: f64) -> Vector2<f64> {
     Vector2::new(-beta.sin(), beta.cos())
 }
 
-/// Finds the three leg runs in one site's returns (module doc); `site` names the site in errors.
-pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[LegRun; 3]> {
+/// The returns sorted by `beta`, rotated to start at a missing return (else at the largest
+/// range jump) so that a leg across `beta = +-pi` stays in one run.
+fn cyclic_order(returns: &[ScanReturn], valid: &dyn Fn(&ScanReturn) -> bool) -> Vec<ScanReturn> {
     let mut rs: Vec<ScanReturn> = returns.to_vec();
     rs.sort_by(|a, b| a.beta_rad.total_cmp(&b.beta_rad));
+    let n = rs.len();
+    let start = rs.iter().position(|r| !valid(r)).unwrap_or_else(|| {
+        (0..n)
+            .max_by(|&i, &j| {
+                let d = |k: usize| (rs[k].range_m - rs[(k + n - 1) % n].range_m).abs();
+                d(i).total_cmp(&d(j))
+            })
+            .unwrap_or(0)
+    });
+    rs.rotate_left(start);
+    rs
+}
+
+/// Median `beta` step between sorted returns (rad).
+fn median_step(rs: &[ScanReturn]) -> f64 {
+    let mut d: Vec<f64> = rs
+        .windows(2)
+        .map(|w| crate::geo::rotations::wrap_pi(w[1].beta_rad - w[0].beta_rad).abs())
+        .collect();
+    d.sort_by(f64::total_cmp);
+    d.get(d.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Finds the three leg runs in one site's returns (module doc); `site` names the site in errors.
+pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[LegRun; 3]> {
     let valid = |r: &ScanReturn| r.range_m.is_finite() && r.range_m > 0.0;
     let jump = (4.0 * m.leg_radius_m).max(10.0 * m.sigma_range_m);
+    let rs = cyclic_order(returns, &valid);
+    let step = median_step(&rs);
+    let adjacent = |i: usize| {
+        crate::geo::rotations::wrap_pi(rs[i].beta_rad - rs[i - 1].beta_rad).abs() <= 2.0 * step
+    };
     // Runs of consecutive valid returns without a range jump, as index ranges.
     let mut runs: Vec<(usize, usize)> = Vec::new();
     let mut start = None;
@@ -166,6 +199,7 @@ pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[
         let cont = i < rs.len()
             && valid(&rs[i])
             && start.is_some()
+            && adjacent(i)
             && (rs[i].range_m - rs[i - 1].range_m).abs() <= jump;
         if !cont {
             if let Some(s) = start.take() {
@@ -178,7 +212,9 @@ pub fn leg_runs(site: u64, returns: &[ScanReturn], m: &LegScanModel) -> Result<[
     }
     let point = |i: usize| beam(rs[i].beta_rad) * (rs[i].range_m + m.range_zero_error_m);
     let behind = |own: usize, other: Option<usize>| {
-        other.is_none_or(|j| !valid(&rs[j]) || rs[j].range_m > rs[own].range_m + jump)
+        other.is_none_or(|j| {
+            !valid(&rs[j]) || !adjacent(own.max(j)) || rs[j].range_m > rs[own].range_m + jump
+        })
     };
     let mut cands: Vec<LegRun> = runs
         .into_iter()
