@@ -249,3 +249,49 @@ fn leg_across_beta_pi_stays_whole() {
         f.centre_s_m
     );
 }
+
+/// The `scans` path's config and input errors name the key, the file and the site.
+#[test]
+fn scans_config_and_input_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let sim = dir.path().join("sim.toml");
+    std::fs::write(&sim, "seed = 4\n").unwrap();
+    run_tripod_simulation(&sim, dir.path()).unwrap();
+    let good = std::fs::read_to_string(dir.path().join("calib_boresight_scans.toml")).unwrap();
+    let run = |text: String| {
+        let cfg = dir.path().join("bad.toml");
+        std::fs::write(&cfg, text).unwrap();
+        run_boresight_calibration(&cfg, dir.path())
+            .unwrap_err()
+            .to_string()
+    };
+    let both = good.replace("[files]\n", "[files]\ncentres = \"tripod_centres.csv\"\n");
+    assert!(run(both).contains("exactly one of centres and scans"));
+    let no_radius: String = good
+        .lines()
+        .filter(|l| !l.starts_with("leg_radius_m"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    assert!(run(no_radius).contains("tripod.leg_radius_m"));
+    // Site 2 loses every return of its nearest leg (the run with the smallest mean range).
+    let scans = std::fs::read_to_string(dir.path().join("tripod_scans.csv")).unwrap();
+    let site2: Vec<(usize, f64)> = scans
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.starts_with("2,") && l.ends_with(",100"))
+        .map(|(i, l)| (i, l.split(',').nth(2).unwrap().parse().unwrap()))
+        .collect();
+    let nearest = site2.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+    let cut: String = scans
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !site2.iter().any(|(j, r)| j == i && *r < nearest + 0.1))
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    std::fs::write(dir.path().join("tripod_scans.csv"), cut).unwrap();
+    let e = run(good);
+    assert!(
+        e.contains("tripod_scans.csv") && e.contains("site 2") && e.contains("found 2"),
+        "{e}"
+    );
+}
