@@ -188,7 +188,9 @@ fn noise_free_sites_recover_the_truth() {
     };
     let mut sites = simulate_sites(&sc, &mut ChaCha8Rng::seed_from_u64(1)).unwrap();
     // The weights need a non-zero sigma; the centres themselves stay exact.
-    sites.iter_mut().for_each(|s| s.sigma_centre_m = [0.001; 3]);
+    sites
+        .iter_mut()
+        .for_each(|s| s.cov_centre_s_m2 = [nalgebra::Matrix2::identity() * 1e-6; 3]);
     let r = estimate_boresight(&sites, &sc.calibration_setup()).unwrap();
     for k in 0..3 {
         assert!(

@@ -25,11 +25,12 @@
 //! ("collinear" sites) all three angles are determined; identical or collinear sites are
 //! refused.
 
+use super::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
 use super::files::{self, CsvTable};
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
 use crate::{Error, Result};
-use nalgebra::{DMatrix, DVector, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
+use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -51,8 +52,9 @@ pub struct TripodSite {
     pub site: u64,
     /// Ellipse centres `(y_s, z_s)` (m) of legs 1, 2, 3 in the scan plane.
     pub centres_s_m: [Vector2<f64>; 3],
-    /// 1-sigma in-plane isotropic uncertainty of each centre (m).
-    pub sigma_centre_m: [f64; 3],
+    /// In-plane covariance of each centre, `(y_s, z_s)` (m^2); a `centres` file gives
+    /// `sigma_m^2 I`, a fit from `scans` its full covariance.
+    pub cov_centre_s_m2: [Matrix2<f64>; 3],
     /// IMU roll, pitch, heading (rad).
     pub attitude_rad: [f64; 3],
     /// 1-sigma of the attitude angles (rad).
@@ -261,7 +263,7 @@ fn prepare_site(s: &TripodSite, setup: &BoresightSetup) -> Result<SiteData> {
     .map_err(|e| Error::Invalid(format!("boresight: site {}: {e}", s.site)))?;
     let cov_legs_s = leg_covariance_s(
         &s.centres_s_m,
-        &s.sigma_centre_m,
+        &s.cov_centre_s_m2,
         setup.cos_leg_angles,
         &sol,
     )?;
@@ -444,8 +446,13 @@ pub struct BoresightConfig {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoresightFiles {
-    /// Ellipse centres `site,leg,y_s_m,z_s_m,sigma_m`.
-    pub centres: PathBuf,
+    /// Ellipse centres `site,leg,y_s_m,z_s_m,sigma_m` (give this or `scans`).
+    #[serde(default)]
+    pub centres: Option<PathBuf>,
+    /// Raw static scan returns `site,beta_rad,range_m,intensity` (`alpha0 = 0`); the centres
+    /// are fitted ([`super::ellipse`]; needs `tripod.leg_radius_m`, `scanner.sigma_range_m`).
+    #[serde(default)]
+    pub scans: Option<PathBuf>,
     /// Site attitudes `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,sigma_heading_deg`.
     pub sites: PathBuf,
 }
@@ -459,6 +466,9 @@ pub struct TripodConfig {
     /// Tripod axis, apex towards feet, in NED (default down: standing on the floor).
     #[serde(default = "default_axis")]
     pub axis_n: [f64; 3],
+    /// Leg radius (m), for fitting centres from `scans`.
+    #[serde(default)]
+    pub leg_radius_m: Option<f64>,
 }
 
 fn default_axis() -> [f64; 3] {
@@ -472,6 +482,12 @@ pub struct BoresightScannerConfig {
     /// Nominal boresight `[bx, by, bz]` (deg, SPEC), any size.
     #[serde(default)]
     pub nominal_boresight_deg: [f64; 3],
+    /// Range noise, 1 sigma (m), for fitting centres from `scans`.
+    #[serde(default)]
+    pub sigma_range_m: Option<f64>,
+    /// Range zero error `K` (m) of `scans`.
+    #[serde(default)]
+    pub range_zero_error_m: f64,
 }
 
 impl BoresightConfig {
@@ -536,6 +552,44 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
             sigma,
         ));
     }
+    let mut out = Vec::new();
+    for (site, line, att, sig) in read_attitudes(attitudes)? {
+        let l = legs
+            .remove(&site)
+            .ok_or_else(|| attitude_error(attitudes, line, site, "ellipse centres"))?;
+        let found: Vec<usize> = (0..3).filter(|&i| l[i].is_some()).map(|i| i + 1).collect();
+        if found.len() != 3 {
+            return Err(Error::bad_file(
+                centres,
+                format!(
+                    "site {site}: the scan plane must cut all three legs, found legs {found:?}"
+                ),
+            ));
+        }
+        let l = l.map(|x| x.unwrap_or_default());
+        out.push(TripodSite {
+            site,
+            centres_s_m: l.map(|x| x.0),
+            cov_centre_s_m2: l.map(|x| Matrix2::identity() * x.1 * x.1),
+            attitude_rad: att,
+            sigma_attitude_rad: sig,
+        });
+    }
+    if let Some(site) = legs.keys().next() {
+        return Err(Error::bad_file(
+            attitudes,
+            format!("site {site} has ellipse centres but no attitude"),
+        ));
+    }
+    out.sort_by_key(|s| s.site);
+    Ok(out)
+}
+
+/// One attitude row: site, line, angles and sigmas (rad).
+type AttitudeRow = (u64, usize, [f64; 3], [f64; 3]);
+
+/// Reads the site attitudes `site,roll_deg,...,sigma_heading_deg` (SPEC angles) in file order.
+fn read_attitudes(attitudes: &Path) -> Result<Vec<AttitudeRow>> {
     let a = CsvTable::read(attitudes)?;
     let names = [
         "roll_deg",
@@ -557,35 +611,115 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
         for (k, &c) in cols.iter().enumerate() {
             v[k] = a.f64(line, f, c)?.to_radians();
         }
-        let l = legs
+        out.push((site, line, [v[0], v[1], v[2]], [v[3], v[4], v[5]]));
+    }
+    Ok(out)
+}
+
+fn attitude_error(attitudes: &Path, line: usize, site: u64, what: &str) -> Error {
+    Error::bad_record(
+        attitudes,
+        format!("line {line}"),
+        format!("site {site} has no {what}"),
+    )
+}
+
+/// Reads raw static scans `site,beta_rad,range_m,intensity` and the site attitudes, and fits
+/// each site's ellipse centres with their fitted covariances ([`fit_site_centres`]; sites in
+/// id order, the legs labelled consistently with the first site's).
+pub fn read_scan_sites(
+    scans: &Path,
+    attitudes: &Path,
+    model: &LegScanModel,
+    setup: &BoresightSetup,
+) -> Result<Vec<TripodSite>> {
+    let t = CsvTable::read(scans)?;
+    let (cs, cb, cr) = (
+        t.column("site")?,
+        t.column("beta_rad")?,
+        t.column("range_m")?,
+    );
+    let mut returns: BTreeMap<u64, Vec<ScanReturn>> = BTreeMap::new();
+    for (line, f) in t.rows() {
+        let site = t.u64(line, f, cs)?;
+        let beta_rad = t.f64(line, f, cb)?;
+        let range_m = t.opt_f64(line, f, cr)?.unwrap_or(0.0);
+        returns
+            .entry(site)
+            .or_default()
+            .push(ScanReturn { beta_rad, range_m });
+    }
+    let mut out = Vec::new();
+    let mut rows = read_attitudes(attitudes)?;
+    rows.sort_by_key(|r| r.0);
+    let mut reference = None;
+    for (site, line, att, sig) in rows {
+        let r = returns
             .remove(&site)
-            .ok_or_else(|| a.bad(line, format!("site {site} has no ellipse centres")))?;
-        let found: Vec<usize> = (0..3).filter(|&i| l[i].is_some()).map(|i| i + 1).collect();
-        if found.len() != 3 {
-            return Err(Error::bad_file(
-                centres,
-                format!(
-                    "site {site}: the scan plane must cut all three legs, found legs {found:?}"
-                ),
-            ));
-        }
-        let l = l.map(|x| x.unwrap_or_default());
+            .ok_or_else(|| attitude_error(attitudes, line, site, "scan returns"))?;
+        let r_b_n = r_b_to_n(att[0], att[1], att[2]);
+        let fitted = fit_site_centres(site, &r, model, setup, &r_b_n, reference.as_ref())
+            .map_err(|e| Error::bad_file(scans, e.to_string()))?;
+        reference.get_or_insert(fitted.legs_n_prior);
+        let fits = fitted.fits;
         out.push(TripodSite {
             site,
-            centres_s_m: l.map(|x| x.0),
-            sigma_centre_m: l.map(|x| x.1),
-            attitude_rad: [v[0], v[1], v[2]],
-            sigma_attitude_rad: [v[3], v[4], v[5]],
+            centres_s_m: [0, 1, 2].map(|i| fits[i].centre_s_m),
+            cov_centre_s_m2: [0, 1, 2].map(|i| fits[i].cov_s_m2),
+            attitude_rad: att,
+            sigma_attitude_rad: sig,
         });
     }
-    if let Some(site) = legs.keys().next() {
+    if let Some(site) = returns.keys().next() {
         return Err(Error::bad_file(
             attitudes,
-            format!("site {site} has ellipse centres but no attitude"),
+            format!("site {site} has scan returns but no attitude"),
         ));
     }
     out.sort_by_key(|s| s.site);
     Ok(out)
+}
+
+/// The sites of a config: from `centres`, or fitted from `scans` (exactly one must be given).
+fn config_sites(
+    cfg: &BoresightConfig,
+    config_path: &Path,
+    setup: &BoresightSetup,
+) -> Result<Vec<TripodSite>> {
+    let src = config_path.display().to_string();
+    let attitudes = files::resolve(config_path, &cfg.files.sites);
+    match (&cfg.files.centres, &cfg.files.scans) {
+        (Some(c), None) => read_sites(&files::resolve(config_path, c), &attitudes),
+        (None, Some(s)) => {
+            let model = LegScanModel {
+                leg_radius_m: cfg
+                    .tripod
+                    .leg_radius_m
+                    .filter(|r| super::positive(*r))
+                    .ok_or_else(|| {
+                        Error::config(&src, "tripod.leg_radius_m", "needed (> 0) with files.scans")
+                    })?,
+                sigma_range_m: cfg
+                    .scanner
+                    .sigma_range_m
+                    .filter(|r| super::positive(*r))
+                    .ok_or_else(|| {
+                        Error::config(
+                            &src,
+                            "scanner.sigma_range_m",
+                            "needed (> 0) with files.scans",
+                        )
+                    })?,
+                range_zero_error_m: cfg.scanner.range_zero_error_m,
+            };
+            read_scan_sites(&files::resolve(config_path, s), &attitudes, &model, setup)
+        }
+        _ => Err(Error::config(
+            &src,
+            "files",
+            "give exactly one of centres and scans",
+        )),
+    }
 }
 
 /// `kinescan calibrate boresight`: reads the TOML config at `config_path` (a
@@ -599,10 +733,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
 pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<BoresightReport> {
     let cfg: BoresightConfig = files::load_toml(config_path)?;
     let setup = cfg.setup(&config_path.display().to_string())?;
-    let sites = read_sites(
-        &files::resolve(config_path, &cfg.files.centres),
-        &files::resolve(config_path, &cfg.files.sites),
-    )?;
+    let sites = config_sites(&cfg, config_path, &setup)?;
     let report = estimate_boresight(&sites, &setup)?;
     files::write_json(&out_dir.join("boresight.json"), &report)?;
     let mut csv = String::from("site,apex_x_s_m,apex_y_s_m,apex_z_s_m,d1_m,d2_m,d3_m,res_leg1_deg,res_leg2_deg,res_leg3_deg\n");

@@ -6,6 +6,7 @@
 //! mapping of the papers' conventions are in `docs/calibration.md`.
 
 pub mod boresight;
+pub mod ellipse;
 pub mod files;
 pub mod latency;
 pub mod sim_table;

@@ -5,7 +5,8 @@
 //! given attitude; the scanner (true boresight `Rz Ry Rx(misalignment) * R_nom`) is placed so
 //! that its beam `beta = 0` crosses the tripod axis `cut_depth_m` below the apex at
 //! `scanner_distance_m`; its scan plane cuts the three legs at the ellipse centres, which get
-//! isotropic Gaussian in-plane noise `sigma_centre_m`. Defaults are the paper's simulation:
+//! isotropic Gaussian in-plane noise `sigma_centre_m`; the raw returns of each site's scan
+//! ([`TripodScenario::simulate_scan`]) are written too, for the centre fit from scans. Defaults are the paper's simulation:
 //! legs at 60 deg, sites (roll, pitch, heading) = (-20, 0, 30), (0, 20, 120), (20, -20, 240) deg,
 //! and a scanner whose scan plane is horizontal in the body (`R_nom`: mirror axis `x_s` along
 //! body down, `beta = 0` forward; SPEC angles (0, -90, 180) deg), which the paper's sites need:
@@ -14,15 +15,17 @@
 //! `site_rotation` selects SPEC's order (default) or the order of the paper's printed matrix.
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
+use super::ellipse::{beam, CutShape};
 use super::files::{self, write_atomic};
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
 use crate::plot::Plot;
 use crate::{Error, Result};
-use nalgebra::{Matrix3, Vector2, Vector3};
+use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -58,6 +61,14 @@ pub struct TripodScenario {
     pub sigma_attitude_deg: [f64; 3],
     /// Monte Carlo trials run by [`run_tripod_simulation`] (0: none).
     pub monte_carlo_trials: usize,
+    /// Leg radius for the raw scans (m).
+    pub leg_radius_m: f64,
+    /// Range noise of the raw scans, 1 sigma (m).
+    pub sigma_range_m: f64,
+    /// Mirror-angle step of the raw scans (deg); a full turn is scanned.
+    pub beta_step_deg: f64,
+    /// Largest range (m); beams that hit nothing nearer are missing returns (range 0).
+    pub max_range_m: f64,
 }
 
 impl Default for TripodScenario {
@@ -77,6 +88,10 @@ impl Default for TripodScenario {
             sigma_centre_m: 0.001,
             sigma_attitude_deg: [0.0, 0.0, 0.0],
             monte_carlo_trials: 0,
+            leg_radius_m: 0.025,
+            sigma_range_m: 0.002,
+            beta_step_deg: 0.1,
+            max_range_m: 30.0,
         }
     }
 }
@@ -158,6 +173,58 @@ impl TripodScenario {
             .map(|c| c.acos().to_degrees())
     }
 
+    /// Raw returns of site `k` with attitude `site_r_b_to_n(k)`: each beam is cast against the
+    /// three leg cuts (ellipses, [`CutShape::of_leg`]) and the floor (the plane through the
+    /// feet, normal to the axis); nearest hit, plus Gaussian range noise `sigma_range_m`;
+    /// range 0 (missing) beyond `max_range_m`. Intensity: 100 on a leg, 30 on the floor.
+    pub fn simulate_scan(&self, k: usize, rng: &mut ChaCha8Rng) -> Result<Vec<(f64, f64, f64)>> {
+        let noise = Normal::new(0.0, self.sigma_range_m)
+            .map_err(|e| Error::config("tripod scenario", "sigma_range_m", e.to_string()))?;
+        if !(self.beta_step_deg > 0.0 && self.leg_radius_m > 0.0) {
+            return Err(Error::config(
+                "tripod scenario",
+                "beta_step_deg / leg_radius_m",
+                "must be > 0",
+            ));
+        }
+        let r_s_n = self.site_r_b_to_n(k) * self.true_r_s_to_b();
+        let centres = self.true_centres(k)?;
+        let legs_s = self.legs_n().map(|e| r_s_n.transpose() * e);
+        let origin =
+            self.axis() * self.cut_depth_m - r_s_n * Vector3::z() * self.scanner_distance_m;
+        let floor_depth = self.leg_length_m * self.leg_from_axis_deg.to_radians().cos();
+        let n_beams = (360.0 / self.beta_step_deg).round() as usize;
+        let mut out = Vec::with_capacity(n_beams);
+        for j in 0..n_beams {
+            let beta = -PI + j as f64 * self.beta_step_deg.to_radians();
+            let u = beam(beta);
+            let mut hit: Option<(f64, f64)> = None;
+            for (c, l) in centres.iter().zip(&legs_s) {
+                let shape = CutShape::of_leg(l, self.leg_radius_m).ok_or_else(|| {
+                    Error::Invalid("tripod scenario: a leg lies in the scan plane".into())
+                })?;
+                if let Some(t) = shape.beam_hit(c, &u) {
+                    if hit.is_none_or(|(h, _)| t < h) {
+                        hit = Some((t, 100.0));
+                    }
+                }
+            }
+            let dir_n = r_s_n * Vector3::new(0.0, u.x, u.y);
+            let along = dir_n.dot(&self.axis());
+            if along > 1e-9 {
+                let t = (floor_depth - origin.dot(&self.axis())) / along;
+                if t > 0.0 && hit.is_none_or(|(h, _)| t < h) {
+                    hit = Some((t, 30.0));
+                }
+            }
+            out.push(match hit {
+                Some((t, i)) if t < self.max_range_m => (beta, t + noise.sample(rng), i),
+                _ => (beta, 0.0, 0.0),
+            });
+        }
+        Ok(out)
+    }
+
     /// Noise-free ellipse centres `(y_s, z_s)` of the three legs at site `k` (m).
     fn true_centres(&self, k: usize) -> Result<[Vector2<f64>; 3]> {
         let r_s_n = self.site_r_b_to_n(k) * self.true_r_s_to_b();
@@ -201,7 +268,7 @@ pub fn simulate_sites(sc: &TripodScenario, rng: &mut ChaCha8Rng) -> Result<Vec<T
         out.push(TripodSite {
             site: k as u64 + 1,
             centres_s_m: centres,
-            sigma_centre_m: [sc.sigma_centre_m; 3],
+            cov_centre_s_m2: [Matrix2::identity() * sc.sigma_centre_m.powi(2); 3],
             attitude_rad,
             sigma_attitude_rad: sig_att,
         });
@@ -342,7 +409,10 @@ pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Resu
 }
 
 /// Writes one realisation as a lab would record it (`tripod_centres.csv`, `tripod_sites.csv`),
-/// the calibration config `calib_boresight.toml` that reads them and `truth.json`.
+/// the calibration config `calib_boresight.toml` that reads them, the raw returns of each
+/// site `tripod_scans.csv` (`site,beta_rad,range_m,intensity`, [`TripodScenario::simulate_scan`],
+/// seeded from `seed`) with `calib_boresight_scans.toml` that reads those instead of the
+/// centres, and `truth.json`.
 pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Path) -> Result<()> {
     let mut c = String::from("site,leg,y_s_m,z_s_m,sigma_m\n");
     let mut a = String::from(
@@ -357,7 +427,7 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
                 i + 1,
                 p.x,
                 p.y,
-                s.sigma_centre_m[i]
+                (0.5 * s.cov_centre_s_m2[i].trace()).sqrt()
             );
         }
         let [r, p, h] = s.attitude_rad.map(f64::to_degrees);
@@ -376,6 +446,30 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
         sc.nominal_boresight_deg
     );
     write_atomic(&out_dir.join("calib_boresight.toml"), cfg.as_bytes())?;
+    let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x5ca7);
+    let mut scans = String::from("site,beta_rad,range_m,intensity\n");
+    for s in sites {
+        for (beta, range, intensity) in sc.simulate_scan(s.site as usize - 1, &mut rng)? {
+            let _ = writeln!(scans, "{},{beta:.9},{range:.5},{intensity}", s.site);
+        }
+    }
+    write_atomic(&out_dir.join("tripod_scans.csv"), scans.as_bytes())?;
+    let cfg_scans = cfg
+        .replace(
+            "centres = \"tripod_centres.csv\"",
+            "scans = \"tripod_scans.csv\"",
+        )
+        .replace(
+            "\n\n[scanner]\n",
+            &format!(
+                "\nleg_radius_m = {}\n\n[scanner]\nsigma_range_m = {}\n",
+                sc.leg_radius_m, sc.sigma_range_m
+            ),
+        );
+    write_atomic(
+        &out_dir.join("calib_boresight_scans.toml"),
+        cfg_scans.as_bytes(),
+    )?;
     let truth = zyx_angles(&sc.true_r_s_to_b());
     files::write_json(
         &out_dir.join("truth.json"),
@@ -390,8 +484,9 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
 /// `kinescan simulate` for the tripod (paper 002, section 5): reads a [`TripodScenario`] TOML at
 /// `config_path` (unknown keys refused) and writes atomically into `out_dir` one realisation as
 /// a lab records it (`tripod_centres.csv`: ellipse centres in the scan plane, m;
-/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg), the calibration config
-/// `calib_boresight.toml` and `truth.json` ([`write_tripod_run`]). With
+/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg; `tripod_scans.csv`: raw returns),
+/// the calibration configs `calib_boresight.toml` (centres), `calib_boresight_scans.toml`
+/// (scans) and `truth.json` ([`write_tripod_run`]). With
 /// `monte_carlo_trials > 0` it also runs the Monte Carlo and writes its outputs
 /// ([`write_monte_carlo_outputs`]: JSON summary, per-trial errors, histogram CSV and one PNG per
 /// angle) and returns the serialisable summary (errors in deg, misalignment about body x, y, z);

@@ -181,17 +181,18 @@ pub fn legs_near(
     Ok(leg_directions_s(c, &apex_s(c, &d, sol.side)?))
 }
 
-/// Covariance (9x9, legs stacked) of the unit leg directions in `s` from independent isotropic
-/// in-plane noise `sigma_m` on each cut point, by central differences.
+/// Covariance (9x9, legs stacked) of the unit leg directions in `s` from independent in-plane
+/// noise of covariance `cov_m2` (m^2, `(y_s, z_s)`) on each cut point, by central differences.
 pub fn leg_covariance_s(
     c: &[Vector2<f64>; 3],
-    sigma_m: &[f64; 3],
+    cov_m2: &[nalgebra::Matrix2<f64>; 3],
     cos_leg: [f64; 3],
     sol: &TripodSolution,
 ) -> Result<nalgebra::SMatrix<f64, 9, 9>> {
     let h = 1e-6;
     let mut cov = nalgebra::SMatrix::<f64, 9, 9>::zeros();
     for leg in 0..3 {
+        let mut g = nalgebra::SMatrix::<f64, 9, 2>::zeros();
         for axis in 0..2 {
             let mut col = nalgebra::SVector::<f64, 9>::zeros();
             for (sgn, w) in [(1.0, 0.5 / h), (-1.0, -0.5 / h)] {
@@ -202,8 +203,9 @@ pub fn leg_covariance_s(
                     col.fixed_rows_mut::<3>(3 * i).axpy(w, ui, 1.0);
                 }
             }
-            cov += col * col.transpose() * sigma_m[leg] * sigma_m[leg];
+            g.set_column(axis, &col);
         }
+        cov += g * cov_m2[leg] * g.transpose();
     }
     Ok(cov)
 }
