@@ -64,7 +64,8 @@ const UNCERTAINTY: &str = "\n[uncertainty]\nsigma_lever_arm_b_m = [0.01, 0.01, 0
     sigma_range_m = 0.005\nsigma_range_zero_m = 0.005\n\
     clock_covariance_s2 = [[1e-8, 0.0], [0.0, 1e-16]]\nsigma_attitude_latency_s = 0.0002\n";
 
-/// `n` returns: 2 M returns/s, 250 Hz mirror, ranges 5-40 m, 1% missing.
+/// `n` returns: 2 M returns/s, 250 Hz mirror, 1% missing; ranges 5-40 m varying smoothly
+/// along each profile, as a street cross-section does.
 fn write_profiles(path: &Path, n: u64) {
     let per_profile = (RATE_HZ * PERIOD_S) as u64;
     let mut w = ProfileWriter::create(path, ProfileColumns::default()).unwrap();
@@ -75,7 +76,8 @@ fn write_profiles(path: &Path, n: u64) {
         let range = if i % 100 == 7 {
             0.0
         } else {
-            5.0 + 35.0 * ((i * 7919) % 1000) as f64 / 1000.0
+            let phase = 3.0 * beta + 1e-3 * (i / per_profile) as f64;
+            5.0 + 35.0 * (0.5 + 0.5 * phase.sin())
         };
         let r = RawReturn {
             profile: (i / per_profile) as u32,

@@ -421,7 +421,7 @@ pub fn r_e_to_map_axes(frame: &MapFrame, x_e: &Vector3<f64>) -> Matrix3<f64> {
 ///
 /// Both matrices turn by about `(1 + tan(lat)) / 6.4e6` rad per metre (local vertical plus grid
 /// convergence: 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg); the UTM scale changes by
-/// < 1e-8 per metre. Within 5 m a sigma therefore changes by < 1.7e-6 (48 deg; 1e-5 at
+/// < 1e-8 per metre. Within 25 m a sigma therefore changes by < 8.5e-6 (48 deg; 5e-5 at
 /// 85 deg) times the ratio of the other axes' sigma to its own: far below the accuracy of any
 /// input sigma.
 #[derive(Debug, Clone)]
@@ -435,7 +435,7 @@ pub struct FrameCache {
 
 impl FrameCache {
     /// Reuse radius (m).
-    pub const REUSE_RADIUS_M: f64 = 5.0;
+    pub const REUSE_RADIUS_M: f64 = 25.0;
 
     /// An empty cache for the map frame `frame`.
     pub fn new(frame: MapFrame) -> Self {
