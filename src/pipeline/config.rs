@@ -168,6 +168,18 @@ pub struct SensorConfig {
     pub max_range_m: f64,
 }
 
+impl SensorConfig {
+    /// The georeferencing sensor (angles converted to radians).
+    pub fn sensor(&self) -> crate::georef::Sensor {
+        crate::georef::Sensor::new(
+            nalgebra::Vector3::from(self.lever_arm_b_m),
+            nalgebra::Vector3::from(self.boresight_deg.map(f64::to_radians)),
+            self.alpha0_deg.to_radians(),
+            self.range_zero_m,
+        )
+    }
+}
+
 /// How return times are obtained (SPEC 2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -199,6 +211,16 @@ pub struct TimeConfig {
     /// Sense of mirror rotation.
     #[serde(default = "default_direction")]
     pub direction: MirrorDirection,
+}
+
+impl TimeConfig {
+    /// The mirror geometry (radians).
+    pub fn mirror(&self) -> crate::timing::Mirror {
+        crate::timing::Mirror {
+            beta_start_rad: self.beta_start_deg.to_radians(),
+            direction: self.direction,
+        }
+    }
 }
 
 /// `[latency]` (SPEC 2 signs).

@@ -12,7 +12,7 @@ use crate::geo::rotations::wrap_pi;
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
-use crate::timing::{Mirror, ScannerClock};
+use crate::timing::ScannerClock;
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
 use crate::uncertainty::model::FrameCache;
 use crate::uncertainty::propagate::covariance_of;
@@ -501,16 +501,8 @@ fn georeferencer<'a>(
         );
         return Err(Error::bad_file(file.path(), msg));
     }
-    let sensor = Sensor::new(
-        Vector3::from(s.lever_arm_b_m),
-        Vector3::from(s.boresight_deg.map(f64::to_radians)),
-        s.alpha0_deg.to_radians(),
-        s.range_zero_m,
-    );
-    let mirror = Mirror {
-        beta_start_rad: c.time.beta_start_deg.to_radians(),
-        direction: c.time.direction,
-    };
+    let sensor = s.sensor();
+    let mirror = c.time.mirror();
     let clock = ScannerClock {
         t0_s: c.time.t0_s.unwrap_or(0.0),
         period_s: c.time.period_s,

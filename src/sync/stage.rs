@@ -3,15 +3,12 @@
 //! constrained) replaces `[time]` / `[latency]` for that file.
 
 use super::{estimate, SyncOptions, SyncResult, SyncTarget};
-use crate::georef::Sensor;
 use crate::io::patches::read_patches;
 use crate::io::points::read_control_points;
 use crate::io::profiles::ProfileFile;
 use crate::pipeline::config::PipelineConfig;
-use crate::timing::Mirror;
 use crate::trajectory::Trajectory;
 use crate::{Error, Result};
-use nalgebra::Vector3;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -42,16 +39,8 @@ pub fn run(
     let patches = sy.targets.as_deref().map(read_patches).transpose()?;
     let targets = SyncTarget::from_surveys(&points, patches.as_deref().unwrap_or(&[]));
     let s = &c.sensor;
-    let sensor = Sensor::new(
-        Vector3::from(s.lever_arm_b_m),
-        Vector3::from(s.boresight_deg.map(f64::to_radians)),
-        s.alpha0_deg.to_radians(),
-        s.range_zero_m,
-    );
-    let mirror = Mirror {
-        beta_start_rad: c.time.beta_start_deg.to_radians(),
-        direction: c.time.direction,
-    };
+    let sensor = s.sensor();
+    let mirror = c.time.mirror();
     let t0 = sy.t0_approx_s.or(c.time.t0_s).ok_or_else(|| {
         Error::config(
             "pipeline",
