@@ -1,9 +1,12 @@
 //! End-to-end throughput: `kinescan run` from a memory-mapped binary profile file to LAS on
-//! disk, with 1 and 2 threads. Not a criterion bench: one timed run per thread count on a large
-//! file, reading returns/s and peak RSS from the run report.
+//! disk, with 1 and 2 threads, without uncertainty, with the default uncertainty fields
+//! (sigma_x/y/z) and with all of them (plus thu95/tvu95 and the six shares). Not a criterion
+//! bench: whole runs on a large file, interleaved and repeated, medians of the returns/s and
+//! peak RSS from the run reports and of the wall time.
 //!
-//! `cargo bench --bench end_to_end` (2e7 returns); `KINESCAN_BENCH_RETURNS=100000000` for more;
-//! `KINESCAN_BENCH_DIR=DIR` to keep the generated survey for profiling.
+//! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
+//! `KINESCAN_BENCH_REPS` to change them; `KINESCAN_BENCH_DIR=DIR` to keep the generated survey
+//! for profiling.
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
@@ -58,11 +61,14 @@ fn write_smrmsg(path: &Path, seconds: f64) {
     w.finish().unwrap();
 }
 
-/// The `[uncertainty]` table of the second run (all fields written).
+/// The `[uncertainty]` table of the uncertainty runs (default fields: sigma_x, sigma_y,
+/// sigma_z).
 const UNCERTAINTY: &str = "\n[uncertainty]\nsigma_lever_arm_b_m = [0.01, 0.01, 0.01]\n\
     sigma_boresight_deg = [0.01, 0.01, 0.01]\nsigma_alpha_deg = 0.005\nsigma_beta_deg = 0.005\n\
     sigma_range_m = 0.005\nsigma_range_zero_m = 0.005\n\
     clock_covariance_s2 = [[1e-8, 0.0], [0.0, 1e-16]]\nsigma_attitude_latency_s = 0.0002\n";
+/// The optional fields, added for the "all fields" runs.
+const OPTIONAL_FIELDS: &str = "write_95 = true\nwrite_shares = true\n";
 
 /// `n` returns: 2 M returns/s, 250 Hz mirror, 1% missing; ranges 5-40 m varying smoothly
 /// along each profile, as a street cross-section does.
@@ -91,6 +97,31 @@ fn write_profiles(path: &Path, n: u64) {
     w.finish().unwrap();
 }
 
+/// One timed run: (returns/s georeferenced, whole wall time s, peak RSS MB).
+fn run_once(dir: &Path, file: &str, threads: usize) -> (f64, f64, f64) {
+    // Each run starts from the same state: replacing a multi-GB LAS still in the page cache
+    // makes the kernel's write copy 2-3x slower on a small VM, whichever run came before.
+    let _ = std::fs::remove_file(dir.join("out/cloud.las"));
+    let started = std::time::Instant::now();
+    let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
+        .args(["--quiet", "run", file, "--threads", &threads.to_string()])
+        .current_dir(dir)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let wall = started.elapsed().as_secs_f64();
+    let report = std::fs::read(dir.join("out/cloud.report.json")).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
+    let rps = report["returns_per_second"].as_f64().unwrap();
+    let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
+    (rps, wall, rss)
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
 fn main() {
     let n: u64 = std::env::var("KINESCAN_BENCH_RETURNS")
         .ok()
@@ -110,34 +141,41 @@ fn main() {
          beta_start_deg = -180.0\n\n[output]\nlas = \"out/cloud.las\"\n"
     );
     let with_smrmsg = pipeline.replace("profiles =", "smrmsg = \"t.smrmsg\"\nprofiles =");
-    std::fs::write(dir.join("uncertainty.toml"), with_smrmsg + UNCERTAINTY).unwrap();
+    let sigmas = with_smrmsg + UNCERTAINTY;
+    std::fs::write(
+        dir.join("all_fields.toml"),
+        sigmas.clone() + OPTIONAL_FIELDS,
+    )
+    .unwrap();
+    std::fs::write(dir.join("uncertainty.toml"), sigmas).unwrap();
     std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
+    let reps: usize = std::env::var("KINESCAN_BENCH_REPS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(3);
     println!(
-        "end_to_end: {n} returns ({:.1} GB profile file)",
+        "end_to_end: {n} returns ({:.1} GB profile file), median of {reps} interleaved runs",
         n as f64 * 40.0 / 1e9
     );
-    let runs = [
-        ("pipeline.toml", 1),
-        ("pipeline.toml", 2),
-        ("uncertainty.toml", 1),
-        ("uncertainty.toml", 2),
-    ];
-    for (file, threads) in runs {
-        let started = std::time::Instant::now();
-        let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
-            .args(["--quiet", "run", file, "--threads", &threads.to_string()])
-            .current_dir(dir)
-            .status()
-            .unwrap();
-        assert!(status.success());
-        let wall = started.elapsed().as_secs_f64();
-        let report = std::fs::read(dir.join("out/cloud.report.json")).unwrap();
-        let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
-        let rps = report["returns_per_second"].as_f64().unwrap();
-        let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
-        println!(
-            "{file}, {threads} thread(s): {:.2} M returns/s georeferenced, {wall:.1} s for the whole run, peak RSS {rss:.0} MB",
-            rps / 1e6
-        );
+    let files = ["pipeline.toml", "uncertainty.toml", "all_fields.toml"];
+    for threads in [1, 2] {
+        let mut runs = vec![Vec::new(); files.len()];
+        for _ in 0..reps {
+            for (k, file) in files.iter().enumerate() {
+                runs[k].push(run_once(dir, file, threads));
+            }
+        }
+        let base_wall = median(runs[0].iter().map(|r| r.1).collect());
+        for (file, r) in files.iter().zip(&runs) {
+            let rps = median(r.iter().map(|r| r.0).collect());
+            let wall = median(r.iter().map(|r| r.1).collect());
+            let rss = median(r.iter().map(|r| r.2).collect());
+            println!(
+                "{file}, {threads} thread(s): {:.2} M returns/s georeferenced, {wall:.2} s for \
+                 the whole run ({:+.0}% vs pipeline.toml), peak RSS {rss:.0} MB",
+                rps / 1e6,
+                (wall / base_wall - 1.0) * 100.0
+            );
+        }
     }
 }

@@ -3,9 +3,11 @@
 //! calibration of the predicted 95% ellipsoid on simulated errors.
 
 use kinescan::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_n_to_e, Geodetic};
+use kinescan::geo::projection::MapFrame;
 use kinescan::geo::rotations::{r_zyx, zyx_angles};
-use kinescan::uncertainty::model::{PointGeometry, N_INPUTS};
-use kinescan::uncertainty::propagate::covariance_of;
+use kinescan::trajectory::NavSigma;
+use kinescan::uncertainty::model::{r_e_to_map_axes, LocalLevel, PointGeometry, N_INPUTS};
+use kinescan::uncertainty::propagate::{covariance_of, Propagator, UncertaintyInputs};
 use nalgebra::{Matrix3, Vector3};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
@@ -66,6 +68,55 @@ proptest! {
             let fd = fd_column(&g, k, col.norm());
             let rel = (col - fd).norm() / col.norm();
             prop_assert!(rel <= 1e-6, "input {k}: relative error {rel:e}, J {col:?}, fd {fd:?}");
+        }
+    }
+
+    /// The pipeline's fast propagation (body-frame sums, diagonal only) gives the reference
+    /// `J Q J^T` diagonal and group variances to round-off (1e-12 relative of the total), in
+    /// UTM axes, for random geometries and random sigmas of every input.
+    #[test]
+    fn propagator_equals_the_reference(seed in any::<u64>()) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let g = random_geometry(&mut rng);
+        let mut u = |a: f64| a * rng.random::<f64>();
+        let inputs = UncertaintyInputs {
+            sigma_lever_arm_b_m: Vector3::new(u(0.05), u(0.05), u(0.05)),
+            sigma_boresight_rad: Vector3::new(u(0.01), u(0.01), u(0.01)),
+            sigma_alpha_rad: u(0.01),
+            sigma_beta_rad: u(0.01),
+            sigma_range_m: u(0.05),
+            sigma_range_zero_m: u(0.05),
+            clock_covariance_s2: Matrix3::from_diagonal(&Vector3::new(u(1e-6), u(1e-12), 0.0))
+                .fixed_view::<2, 2>(0, 0)
+                .into_owned(),
+            sigma_attitude_latency_s: u(0.005),
+        };
+        let nav = NavSigma {
+            pos_ned_m: Vector3::new(u(0.1), u(0.1), u(0.1)),
+            att_rph_rad: Vector3::new(u(1e-3), u(1e-3), u(1e-3)),
+        };
+        let dt_dclock = [1.0, u(1e5)];
+        let zone = ((g.lon_rad.to_degrees() + 180.0) / 6.0).floor() as u8 % 60 + 1;
+        let frame = MapFrame::utm(zone, g.lat_rad >= 0.0).unwrap();
+        let local = LocalLevel::at(g.lat_rad, g.lon_rad, g.h_m);
+        let terms = g.terms(local.r_n_to_e);
+        let out = r_e_to_map_axes(&frame, &terms.point_e(&g.r_e_m));
+        let j = g.jacobian_in_axes(&out, &local.dtheta_per_m, &terms);
+        let want = covariance_of(&j, &inputs.sigmas(&nav, dt_dclock)).axes();
+        let fast = Propagator::new(inputs, true, g.lever_arm_b_m, g.r_s_to_b).variances(
+            &(out * local.r_n_to_e),
+            &local.dtheta_per_m,
+            &terms,
+            &g.omega_b_radps,
+            &g.v_n_mps,
+            &nav,
+            dt_dclock,
+        );
+        let total = want.var_m2.sum();
+        prop_assert!((fast.var_m2 - want.var_m2).abs().max() <= 1e-12 * total,
+            "fast {:?} reference {:?}", fast.var_m2, want.var_m2);
+        for (a, b) in fast.group_variance_m2.iter().zip(&want.group_variance_m2) {
+            prop_assert!((a - b).abs() <= 1e-12 * total, "groups fast {a} reference {b}");
         }
     }
 }

@@ -355,11 +355,13 @@ pub struct UncertaintyConfig {
     pub clock_covariance_s2: [[f64; 2]; 2],
     /// Attitude latency tau (s).
     pub sigma_attitude_latency_s: f64,
-    /// Also write `thu95` and `tvu95` (95% horizontal and vertical, m).
-    #[serde(default = "yes")]
+    /// Also write `thu95` and `tvu95` (95% horizontal and vertical, m). Default false: they
+    /// follow from `sigma_x/y/z`, and cost 8 bytes a point.
+    #[serde(default)]
     pub write_95: bool,
-    /// Also write the per-group variance shares `share_<group>` (fractions).
-    #[serde(default = "yes")]
+    /// Also write the per-group variance shares `share_<group>` (fractions). Default false:
+    /// 24 bytes a point.
+    #[serde(default)]
     pub write_shares: bool,
 }
 

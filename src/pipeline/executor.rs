@@ -15,8 +15,8 @@ use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::ScannerClock;
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
 use crate::uncertainty::model::FrameCache;
-use crate::uncertainty::propagate::covariance_of;
-use crate::uncertainty::{PointCovariance, PointGeometry, UncertaintyInputs};
+use crate::uncertainty::propagate::AxisVariances;
+use crate::uncertainty::propagate::{Propagator, TVU95_FACTOR};
 use crate::{Error, Result};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -64,7 +64,7 @@ struct Georeferencer<'a> {
 
 /// Per-point uncertainty (present with an `[uncertainty]` table).
 struct UncertaintyOut {
-    inputs: UncertaintyInputs,
+    propagator: Propagator,
     write_95: bool,
     write_shares: bool,
     /// Index in `LasPoint::extra` of `sigma_x`.
@@ -74,12 +74,14 @@ struct UncertaintyOut {
 impl UncertaintyOut {
     /// Writes the uncertainty extra dimensions of `cov` into `extra` (order of
     /// [`super::sink::uncertainty_dims`]).
-    fn fill(&self, cov: &PointCovariance, extra: &mut [f64]) {
+    fn fill(&self, cov: &AxisVariances, extra: &mut [f64]) {
         let mut values = [0.0; 11];
-        values[..3].copy_from_slice(cov.sigma_xyz_m().as_slice());
+        let sigma = cov.sigma_xyz_m();
+        values[..3].copy_from_slice(sigma.as_slice());
         let mut n = 3;
         if self.write_95 {
-            values[n..n + 2].copy_from_slice(&[cov.thu95_m(), cov.tvu95_m()]);
+            let tvu95 = TVU95_FACTOR * sigma.z; // = cov.tvu95_m() without a second sqrt
+            values[n..n + 2].copy_from_slice(&[cov.thu95_m(), tvu95]);
             n += 2;
         }
         if self.write_shares {
@@ -125,14 +127,14 @@ impl Georeferencer<'_> {
     fn apply_sync(&mut self, s: &crate::sync::SyncResult) {
         self.clock.t0_s = s.clock.t0_s;
         self.clock.period_s = s.clock.period_s;
-        if let Some(u) = self.uncertainty.as_mut() {
-            u.inputs.clock_covariance_s2 = nalgebra::Matrix2::from(s.clock.cov_t0_period);
-        }
-        if let (Some(tau), Some(sigma)) = (s.attitude_latency_s, s.sigma_attitude_latency_s) {
+        let latency = s.attitude_latency_s.zip(s.sigma_attitude_latency_s);
+        if let Some((tau, _)) = latency {
             self.attitude_latency_s = tau;
-            if let Some(u) = self.uncertainty.as_mut() {
-                u.inputs.sigma_attitude_latency_s = sigma;
-            }
+        }
+        if let Some(u) = self.uncertainty.as_mut() {
+            let clock = nalgebra::Matrix2::from(s.clock.cov_t0_period);
+            u.propagator
+                .set_timing(clock, latency.map(|(_, sigma)| sigma));
         }
     }
 
@@ -165,7 +167,8 @@ impl Georeferencer<'_> {
         cursor: &mut PoseCursor,
         local: &mut Option<LocalProjection>,
         sigmas: Option<&mut (SigmaCursor, FrameCache)>,
-    ) -> Result<(LasPoint, f64), RejectReason> {
+        p: &mut LasPoint,
+    ) -> Result<f64, RejectReason> {
         let alpha = if self.columns.alpha {
             r.alpha_rad
         } else {
@@ -192,30 +195,32 @@ impl Georeferencer<'_> {
         let x_m = self
             .local_projection(local, &pose.nav.r_e_m)
             .ecef_to_map(&x_e);
-        let mut p = LasPoint {
-            x: x_m.x,
-            y: x_m.y,
-            z: x_m.z,
-            intensity: r.intensity,
-            scan_angle_deg: wrap_pi(r.beta_rad).to_degrees(),
-            gps_time: t,
-            point_source_id: self.point_source_id,
-            ..LasPoint::default()
-        };
+        // Filled in place: a LasPoint is ~190 bytes, moving it per return costs more than
+        // the georeferencing arithmetic.
+        (p.x, p.y, p.z) = (x_m.x, x_m.y, x_m.z);
+        p.intensity = r.intensity;
+        p.scan_angle_deg = wrap_pi(r.beta_rad).to_degrees();
+        p.gps_time = t;
+        p.point_source_id = self.point_source_id;
         if let Some(k) = self.slots.range {
             p.extra[k] = r.range_m;
         }
         if let (Some(u), Some((nav_sigma, frames))) = (&self.uncertainty, nav_sigma) {
-            // The Jacobian reuses the georeferencing terms; the map axes and the local-level
-            // turn come from the cache.
-            let geom = PointGeometry::from_pose(&pose, &self.sensor, alpha, r.beta_rad, r.range_m);
-            let dtheta = frames.local_level(&geom).dtheta_per_m;
-            let j = geom.jacobian_in_axes(frames.map_axes(&x_e), &dtheta, &terms);
-            let sigmas = u.inputs.sigmas(&nav_sigma, self.clock_partials(r));
-            let cov = covariance_of(&j, &sigmas);
+            // Reuses the georeferencing terms; the map axes and the local-level turn come
+            // from the cache.
+            let (r_n_to_map, dtheta) = frames.frames(&x_e, &pose.nav);
+            let cov = u.propagator.variances(
+                r_n_to_map,
+                dtheta,
+                &terms,
+                &pose.omega_b_radps,
+                &pose.nav.v_n_mps,
+                &nav_sigma,
+                self.clock_partials(r),
+            );
             u.fill(&cov, &mut p.extra);
         }
-        Ok((p, t))
+        Ok(t)
     }
 
     /// The map projection expanded about the vehicle, re-expanded when it has moved
@@ -240,9 +245,12 @@ impl Georeferencer<'_> {
         file: &ProfileFile,
         range: std::ops::Range<usize>,
         layout: &PointLayout,
+        pool: &BufferPool,
     ) -> Result<ChunkOut> {
+        let mut records = pool.take();
+        records.reserve(range.len() * layout.record_len());
         let mut out = ChunkOut {
-            records: Vec::with_capacity(range.len() * layout.record_len()),
+            records,
             stats: ChunkStats::empty(layout.record_len()),
             counts: [0; RejectReason::ALL.len()],
             first_reject: None,
@@ -254,7 +262,8 @@ impl Georeferencer<'_> {
         let mut cursor =
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
         let mut local = None;
-        let mut batch: Vec<LasPoint> = Vec::with_capacity(ENCODE_BATCH);
+        let mut batch = vec![LasPoint::default(); ENCODE_BATCH];
+        let mut filled = 0;
         let mut sigmas = self
             .uncertainty
             .as_ref()
@@ -275,14 +284,16 @@ impl Georeferencer<'_> {
             }
             prev = Some(r.profile);
             out.profiles = Some((out.profiles.map_or(r.profile, |p| p.0), r.profile));
-            match self.point(&r, &mut cursor, &mut local, sigmas.as_mut()) {
-                Ok((mut p, t)) => {
+            let p = &mut batch[filled];
+            match self.point(&r, &mut cursor, &mut local, sigmas.as_mut(), p) {
+                Ok(t) => {
                     if let Some(k) = self.slots.return_index {
                         p.extra[k] = i as f64;
                     }
-                    batch.push(p);
-                    if batch.len() == ENCODE_BATCH {
-                        encode_into(&mut batch, layout, &mut out)?;
+                    filled += 1;
+                    if filled == ENCODE_BATCH {
+                        encode_into(&batch, layout, &mut out)?;
+                        filled = 0;
                     }
                     t_min = t_min.min(t);
                     t_max = t_max.max(t);
@@ -293,7 +304,7 @@ impl Georeferencer<'_> {
                 }
             }
         }
-        encode_into(&mut batch, layout, &mut out)?;
+        encode_into(&batch[..filled], layout, &mut out)?;
         if t_min <= t_max {
             out.time_span_s = Some((t_min, t_max));
         }
@@ -308,12 +319,34 @@ const ENCODE_BATCH: usize = 1024;
 /// exact projection.
 const RECENTRE_M: f64 = 100.0;
 
-/// Encodes and empties `batch`, appending its records and stats to `out`.
-fn encode_into(batch: &mut Vec<LasPoint>, layout: &PointLayout, out: &mut ChunkOut) -> Result<()> {
+/// Encodes `batch`, appending its records and stats to `out`.
+fn encode_into(batch: &[LasPoint], layout: &PointLayout, out: &mut ChunkOut) -> Result<()> {
     let stats = encode_points(batch, layout, &mut out.records)?;
     out.stats.merge(&stats);
-    batch.clear();
     Ok(())
+}
+
+/// Record buffers handed back by the writer for reuse: a fresh multi-megabyte buffer per chunk
+/// costs a page fault and a page clear per 4 KiB, more than writing it.
+#[derive(Default)]
+struct BufferPool(std::sync::Mutex<Vec<Vec<u8>>>);
+
+impl BufferPool {
+    fn take(&self) -> Vec<u8> {
+        self.0
+            .lock()
+            .map(|mut v| v.pop())
+            .ok()
+            .flatten()
+            .unwrap_or_default()
+    }
+
+    fn give(&self, mut buf: Vec<u8>) {
+        buf.clear();
+        if let Ok(mut v) = self.0.lock() {
+            v.push(buf);
+        }
+    }
 }
 
 /// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
@@ -522,7 +555,12 @@ fn georeferencer<'a>(
         point_source_id,
         slots: ExtraSlots::for_config(c).0,
         uncertainty: c.uncertainty.as_ref().map(|u| UncertaintyOut {
-            inputs: u.inputs(),
+            propagator: Propagator::new(
+                u.inputs(),
+                u.write_shares,
+                sensor.lever_arm_b_m,
+                sensor.r_s_to_b,
+            ),
             write_95: u.write_95,
             write_shares: u.write_shares,
             first_dim: ExtraSlots::for_config(c).0.uncertainty.unwrap_or(0),
@@ -560,11 +598,12 @@ fn process_file(
     let layout = sink.layout().clone();
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let mut acc = FileAccumulator::new(file, strictness);
+    let pool = BufferPool::default();
     std::thread::scope(|scope| {
         let writer = scope.spawn(|| -> Result<()> {
             for batch in rx {
                 for (r, out) in batch {
-                    acc.absorb(r, out, sink, bar)?;
+                    pool.give(acc.absorb(r, out, sink, bar)?);
                 }
             }
             Ok(())
@@ -577,7 +616,7 @@ fn process_file(
                 .collect();
             let outs: Batch = ranges
                 .into_par_iter()
-                .map(|r| (r.clone(), g.chunk(file, r, &layout)))
+                .map(|r| (r.clone(), g.chunk(file, r, &layout, &pool)))
                 .collect();
             if tx.send(outs).is_err() {
                 break; // the writer stopped on an error, reported below
@@ -619,7 +658,7 @@ impl<'f> FileAccumulator<'f> {
         out: Result<ChunkOut>,
         sink: &mut LasSink,
         bar: &indicatif::ProgressBar,
-    ) -> Result<()> {
+    ) -> Result<Vec<u8>> {
         let path = self.file.path();
         let out = out.map_err(|e| {
             Error::bad_record(
@@ -649,7 +688,7 @@ impl<'f> FileAccumulator<'f> {
         self.hasher.update(self.file.record_bytes(r.clone()));
         self.file.release(r.clone());
         bar.inc(r.len() as u64);
-        Ok(())
+        Ok(out.records)
     }
 
     fn finish(self, original: &Path, point_source_id: u16) -> Result<InputReport> {

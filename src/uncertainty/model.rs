@@ -24,7 +24,7 @@ use crate::geo::ellipsoid::{
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::{r_zyx, skew, zyx_angles};
 use crate::georef::{beam_s, ReturnTerms, Sensor};
-use crate::trajectory::Pose;
+use crate::trajectory::{NavSample, Pose};
 use nalgebra::{Matrix3, Rotation3, SMatrix, Vector3};
 
 /// Number of error inputs.
@@ -391,7 +391,7 @@ fn perturb_zyx(r: &Matrix3<f64>, dx: f64, dy: f64, dz: f64) -> Matrix3<f64> {
 /// The body-frame axes `u_k` with `dR/dk = R [u_k]x` for the ZYX angles of `R = Rz Ry Rx`, as
 /// columns: `x`, `Rx(x)^T y = (0, cos x, -sin x)`, `R^T z` (the third row of `R`). Needs no
 /// angle: `(sin x, cos x)` is the normalised `(R_zy, R_zz)` (cos y > 0 away from y = +-90 deg).
-fn zyx_axes(r: &Matrix3<f64>) -> Matrix3<f64> {
+pub fn zyx_axes(r: &Matrix3<f64>) -> Matrix3<f64> {
     let (s, c) = (r[(2, 1)], r[(2, 2)]);
     let norm = (s * s + c * c).sqrt();
     Matrix3::new(
@@ -414,13 +414,14 @@ pub fn r_e_to_map_axes(frame: &MapFrame, x_e: &Vector3<f64>) -> Matrix3<f64> {
     frame.r_enu_to_map_axes(x_e) * r_enu_to_e(g.lat_rad, g.lon_rad).transpose()
 }
 
-/// Per-thread cache of the two frame quantities of a return that vary slowly in space:
-/// [`r_e_to_map_axes`] at the point and [`LocalLevel`] at the IMU, each re-evaluated only when
-/// its position has moved more than [`FrameCache::REUSE_RADIUS_M`] (consecutive returns are
-/// centimetres to decimetres apart, the IMU moves millimetres between them).
+/// Per-thread cache of the frame quantities of a return that vary slowly in space:
+/// [`r_e_to_map_axes`] at the point, [`LocalLevel`] at the IMU and their product with `R_n^e`,
+/// re-evaluated only when the point or the IMU has moved more than
+/// [`FrameCache::REUSE_RADIUS_M`] (consecutive returns are centimetres to decimetres apart, the
+/// IMU moves millimetres between them).
 ///
-/// Both matrices turn by about `(1 + tan(lat)) / 6.4e6` rad per metre (local vertical plus grid
-/// convergence: 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg); the UTM scale changes by
+/// These matrices turn by about `(1 + tan(lat)) / 6.4e6` rad per metre (local vertical plus
+/// grid convergence: 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg); the UTM scale changes by
 /// < 1e-8 per metre. Within 25 m a sigma therefore changes by < 8.5e-6 (48 deg; 5e-5 at
 /// 85 deg) times the ratio of the other axes' sigma to its own: far below the accuracy of any
 /// input sigma.
@@ -431,6 +432,7 @@ pub struct FrameCache {
     r_e_to_map: Matrix3<f64>,
     local_at_e: Vector3<f64>,
     local: LocalLevel,
+    r_n_to_map: Matrix3<f64>,
 }
 
 impl FrameCache {
@@ -445,6 +447,7 @@ impl FrameCache {
             r_e_to_map: Matrix3::identity(),
             local_at_e: Vector3::repeat(f64::INFINITY),
             local: LocalLevel::at(0.0, 0.0, 0.0),
+            r_n_to_map: Matrix3::identity(),
         }
     }
 
@@ -452,21 +455,29 @@ impl FrameCache {
         (x_e - at).norm_squared() > Self::REUSE_RADIUS_M * Self::REUSE_RADIUS_M
     }
 
-    /// `d x_map / d x_e` near the ECEF point `x_e`.
-    pub fn map_axes(&mut self, x_e: &Vector3<f64>) -> &Matrix3<f64> {
+    /// For a point at ECEF `x_e` seen from the IMU state `imu`: `d x_map / d x_n`
+    /// ([`r_e_to_map_axes`] at the point times `R_n^e` at the IMU) and
+    /// [`LocalLevel::dtheta_per_m`] at the IMU.
+    #[inline]
+    pub fn frames(
+        &mut self,
+        x_e: &Vector3<f64>,
+        imu: &NavSample,
+    ) -> (&Matrix3<f64>, &Matrix3<f64>) {
+        let mut moved = false;
         if Self::stale(&self.map_at_e, x_e) {
             self.r_e_to_map = r_e_to_map_axes(&self.frame, x_e);
             self.map_at_e = *x_e;
+            moved = true;
         }
-        &self.r_e_to_map
-    }
-
-    /// [`LocalLevel`] near the IMU of `geom`.
-    pub fn local_level(&mut self, geom: &PointGeometry) -> &LocalLevel {
-        if Self::stale(&self.local_at_e, &geom.r_e_m) {
-            self.local = LocalLevel::at(geom.lat_rad, geom.lon_rad, geom.h_m);
-            self.local_at_e = geom.r_e_m;
+        if Self::stale(&self.local_at_e, &imu.r_e_m) {
+            self.local = LocalLevel::at(imu.lat_rad, imu.lon_rad, imu.h_m);
+            self.local_at_e = imu.r_e_m;
+            moved = true;
         }
-        &self.local
+        if moved {
+            self.r_n_to_map = self.r_e_to_map * self.local.r_n_to_e;
+        }
+        (&self.r_n_to_map, &self.local.dtheta_per_m)
     }
 }
