@@ -92,46 +92,31 @@ fn bench(c: &mut Criterion) {
                 .sum::<f64>()
         })
     });
-    g.bench_function("propagator_sigmas", |b| {
-        let prop = black_box(Propagator::new(inputs(), false, lever, r_s_b));
-        b.iter(|| {
-            cases
-                .iter()
-                .map(|k| {
-                    let v = prop.variances(
-                        &r_n_out,
-                        &local.dtheta_per_m,
-                        black_box(&k.terms),
-                        &k.geom.omega_b_radps,
-                        &k.geom.v_n_mps,
-                        black_box(&nav),
-                        black_box([1.0, k.geom.beta_rad]),
-                    );
-                    v.var_m2.sum() + v.group_variance_m2.iter().sum::<f64>()
-                })
-                .sum::<f64>()
-        })
-    });
-    g.bench_function("propagator_sigmas_and_shares", |b| {
-        let prop = black_box(Propagator::new(inputs(), true, lever, r_s_b));
-        b.iter(|| {
-            cases
-                .iter()
-                .map(|k| {
-                    let v = prop.variances(
-                        &r_n_out,
-                        &local.dtheta_per_m,
-                        black_box(&k.terms),
-                        &k.geom.omega_b_radps,
-                        &k.geom.v_n_mps,
-                        black_box(&nav),
-                        black_box([1.0, k.geom.beta_rad]),
-                    );
-                    v.var_m2.sum() + v.group_variance_m2.iter().sum::<f64>()
-                })
-                .sum::<f64>()
-        })
-    });
+    for (name, with_groups) in [
+        ("propagator_sigmas", false),
+        ("propagator_sigmas_and_shares", true),
+    ] {
+        let prop = black_box(Propagator::new(inputs(), with_groups, lever, r_s_b));
+        g.bench_function(name, |b| {
+            b.iter(|| {
+                cases
+                    .iter()
+                    .map(|k| {
+                        let v = prop.variances(
+                            &r_n_out,
+                            &local.dtheta_per_m,
+                            black_box(&k.terms),
+                            &k.geom.omega_b_radps,
+                            &k.geom.v_n_mps,
+                            black_box(&nav),
+                            black_box([1.0, k.geom.beta_rad]),
+                        );
+                        v.var_m2.sum() + v.group_variance_m2.iter().sum::<f64>()
+                    })
+                    .sum::<f64>()
+            })
+        });
+    }
     g.bench_function("reference_jacobian", |b| {
         let sigmas = inputs().sigmas(&nav, [1.0, 1234.5]);
         b.iter(|| {

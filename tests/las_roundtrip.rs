@@ -7,7 +7,7 @@ use std::path::Path;
 
 use kinescan::io::las::{
     encode_points, ChunkStats, ExtraDim, ExtraType, GpsTimeConvention, LasPoint, LasSummary,
-    LasWriter, LasWriterConfig, PointLayout, MAX_EXTRA_DIMS,
+    LasWriter, LasWriterConfig, PointLayout, FRACTION_SCALE, MAX_EXTRA_DIMS,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -25,6 +25,7 @@ fn dims() -> Vec<ExtraDim> {
         ExtraDim::f32("sigma_y", "1-sigma along Y (m)"),
         ExtraDim::f32("sigma_z", "1-sigma along Z (m)"),
         ExtraDim::f64("range_m", "scanner range (m)"),
+        ExtraDim::fraction("share", "a fraction 0-1"),
     ]
 }
 
@@ -50,6 +51,7 @@ fn points(n: usize, seed: u64) -> Vec<LasPoint> {
             extra[1] = rng.random_range(0.001..0.05);
             extra[2] = rng.random_range(0.001..0.08);
             extra[3] = rng.random_range(1.0..120.0);
+            extra[4] = rng.random_range(0.0..=1.0);
             LasPoint {
                 x: OFFSET_M[0] + rng.random_range(-300.0..300.0),
                 y: OFFSET_M[1] + rng.random_range(-300.0..300.0),
@@ -87,7 +89,8 @@ fn write_file(path: &Path, cfg: LasWriterConfig, pts: &[LasPoint], chunk: usize)
     writer.finish().unwrap()
 }
 
-/// (name, data_type, offset in the extra bytes) parsed from the Extra Bytes VLR by hand.
+/// (name, data_type, description, offset in the extra bytes) parsed from the Extra Bytes VLR
+/// by hand; only the unsigned char type carries a scale (FRACTION_SCALE).
 fn parse_extra_bytes_vlr(header: &las::Header) -> Vec<(String, u8, String, usize)> {
     let vlr = header
         .vlrs()
@@ -101,12 +104,17 @@ fn parse_extra_bytes_vlr(header: &las::Header) -> Vec<(String, u8, String, usize
         .chunks_exact(192)
         .map(|d| {
             assert_eq!(&d[0..2], &[0, 0], "reserved");
-            assert_eq!(d[3], 0, "options: no no_data/min/max/scale/offset");
+            let scaled = d[2] == 1;
+            let options = if scaled { 1 << 3 } else { 0 };
+            assert_eq!(d[3], options, "options: scale only for the byte type");
+            let scale = f64::from_le_bytes(d[112..120].try_into().unwrap());
+            assert_eq!(scale, if scaled { FRACTION_SCALE } else { 0.0 });
             assert!(
-                d[36..160].iter().all(|b| *b == 0),
-                "unused/no_data/min/max/scale/offset"
+                d[36..112].iter().chain(&d[120..160]).all(|b| *b == 0),
+                "unused/no_data/min/max/other scales/offset"
             );
             let size = match d[2] {
+                1 => 1,
                 9 => 4,
                 10 => 8,
                 t => panic!("unexpected data_type {t}"),
@@ -125,6 +133,7 @@ fn parse_extra_bytes_vlr(header: &las::Header) -> Vec<(String, u8, String, usize
 
 fn extra_value(bytes: &[u8], data_type: u8, offset: usize) -> f64 {
     match data_type {
+        1 => f64::from(bytes[offset]) * FRACTION_SCALE,
         9 => f64::from(f32::from_le_bytes(
             bytes[offset..offset + 4].try_into().unwrap(),
         )),
@@ -150,7 +159,7 @@ fn check_roundtrip(time: GpsTimeConvention, path: &Path) {
     let (header, back) = read_back(path);
     assert_eq!(header.version(), las::Version::new(1, 4));
     assert_eq!(header.point_format().to_u8().unwrap(), 6);
-    assert_eq!(header.point_format().extra_bytes, 4 + 4 + 4 + 8);
+    assert_eq!(header.point_format().extra_bytes, 4 + 4 + 4 + 8 + 1);
     assert_eq!(header.number_of_points(), pts.len() as u64);
     assert_eq!(back.len(), pts.len());
     assert_eq!(header.system_identifier(), "kinescan test");
@@ -190,7 +199,7 @@ fn check_roundtrip(time: GpsTimeConvention, path: &Path) {
 
     let eb = parse_extra_bytes_vlr(&header);
     let names: Vec<&str> = eb.iter().map(|e| e.0.as_str()).collect();
-    assert_eq!(names, ["sigma_x", "sigma_y", "sigma_z", "range_m"]);
+    assert_eq!(names, ["sigma_x", "sigma_y", "sigma_z", "range_m", "share"]);
     assert_eq!(eb[0].2, "1-sigma along X (m)");
 
     let shift = time.shift_s();
@@ -223,12 +232,16 @@ fn check_roundtrip(time: GpsTimeConvention, path: &Path) {
         assert_eq!(q.user_data, p.user_data);
         for (k, (_, ty, _, off)) in eb.iter().enumerate() {
             let v = extra_value(&q.extra_bytes, *ty, *off);
-            let want = if *ty == 9 {
-                f64::from(p.extra[k] as f32)
-            } else {
-                p.extra[k]
+            let want = match *ty {
+                9 => f64::from(p.extra[k] as f32),
+                1 => (p.extra[k] / FRACTION_SCALE).round() * FRACTION_SCALE,
+                _ => p.extra[k],
             };
             assert_eq!(v, want, "extra dimension {k}");
+            if *ty == 1 {
+                // Half a step of 0.004 at most, plus the scale's own rounding.
+                assert!((v - p.extra[k]).abs() <= 0.002 + 1e-12);
+            }
         }
     }
     let stored = las::raw::Header::read_from(std::fs::File::open(path).unwrap()).unwrap();
@@ -287,7 +300,7 @@ fn empty_file_is_valid() {
     assert_eq!(header.number_of_points(), 0);
     assert!(back.is_empty());
     assert_eq!(header.bounds().min.x, 0.0);
-    assert_eq!(parse_extra_bytes_vlr(&header).len(), 4);
+    assert_eq!(parse_extra_bytes_vlr(&header).len(), 5);
 }
 
 #[test]
@@ -384,7 +397,7 @@ fn invalid_layouts_are_errors() {
     }
     assert!(PointLayout::with_scale([0.0, 1.0, 1.0], OFFSET_M, time, vec![]).is_err());
     let layout = PointLayout::new(OFFSET_M, time, dims()).unwrap();
-    assert_eq!(layout.record_len(), 30 + 20);
+    assert_eq!(layout.record_len(), 30 + 21);
     assert_eq!(layout.extra_dims()[3].data_type, ExtraType::F64);
     let dir = tempfile::tempdir().unwrap();
     let bad_wkt = LasWriterConfig {

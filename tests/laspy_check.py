@@ -3,14 +3,17 @@
 
 Usage:
   python3 tests/laspy_check.py FILE.las --expect-epsg 32632 \
-      --expect-dims sigma_x,sigma_y,sigma_z --expect-count 5000 [--expect-gps-time adjusted|week]
+      --expect-dims sigma_x,sigma_y,sigma_z --expect-count 5000 [--expect-gps-time adjusted|week] \
+      [--expect-shares share_a,share_b,...]
 
 Needs `pip install 'laspy[lazrs]' pyproj`. Exits non-zero, naming every failed check, if laspy
 warns (warnings module or its logger), if the version is not 1.4 or the point format not 6, if
 a named extra dimension is missing or not float, if parse_crs() does not give the EPSG code, if
 the point count differs, if header bounds differ from the points', if legacy counts are not
 zero, or if the GPS time type bit disagrees with the expectation or with the
-stored times (week seconds must lie in [0, 604800]).
+stored times (week seconds must lie in [0, 604800]). With --expect-shares: each named dimension
+must be a scaled integer that laspy decodes to fractions in [0, 1], and per point they must sum
+to 1 within the storage rounding (half a step, 0.002, per dimension) or all be 0.
 """
 
 import argparse
@@ -31,7 +34,10 @@ class _Collect(logging.Handler):
         self.messages.append(f"laspy log {record.levelname}: {record.getMessage()}")
 
 
-def check(path, epsg, dims, count, gps_time):
+SHARE_STEP = 0.004
+
+
+def check(path, epsg, dims, count, gps_time, shares=()):
     import laspy  # imported here so a missing package is reported as a failure, not a trace
 
     failures = []
@@ -43,6 +49,7 @@ def check(path, epsg, dims, count, gps_time):
         crs = las.header.parse_crs()
         extra = {d.name: d for d in las.point_format.extra_dimensions}
         _ = [las[name] for name in dims if name in extra]  # decode each requested dimension
+        share_values = [las[name] for name in shares if name in extra]
         gps = las.gps_time if len(las.points) else None
     failures += [f"warning: {w.category.__name__}: {w.message}" for w in caught]
     failures += log.messages
@@ -57,6 +64,21 @@ def check(path, epsg, dims, count, gps_time):
             failures.append(f"extra dimension {name!r} missing (have {sorted(extra)})")
         elif extra[name].kind.name != "FloatingPoint":
             failures.append(f"extra dimension {name!r} is {extra[name].dtype}, expected float")
+    for name in shares:
+        if name not in extra:
+            failures.append(f"share dimension {name!r} missing (have {sorted(extra)})")
+        elif extra[name].scales is None or extra[name].scales[0] != SHARE_STEP:
+            failures.append(f"share dimension {name!r} has scale {extra[name].scales}")
+    if shares and len(share_values) == len(shares) and len(las.points):
+        import numpy as np
+
+        v = np.stack([np.asarray(a, dtype=float) for a in share_values])
+        total = v.sum(axis=0)
+        if v.min() < 0 or v.max() > 1 + 1e-9:
+            failures.append(f"shares outside [0, 1]: {v.min()}..{v.max()}")
+        off = np.abs(total - 1.0) > len(shares) * SHARE_STEP / 2 + 1e-9
+        if np.any(off & (total != 0)):
+            failures.append(f"{int(np.sum(off & (total != 0)))} points whose shares do not sum to 1")
     if crs is None:
         failures.append("parse_crs() found no CRS")
     elif crs.to_epsg() != epsg:
@@ -90,10 +112,13 @@ def main():
     ap.add_argument("--expect-dims", default="", help="comma-separated extra dimension names")
     ap.add_argument("--expect-count", type=int)
     ap.add_argument("--expect-gps-time", choices=["adjusted", "week"])
+    ap.add_argument("--expect-shares", default="", help="comma-separated share dimension names")
     args = ap.parse_args()
     dims = [d for d in args.expect_dims.split(",") if d]
+    shares = [d for d in args.expect_shares.split(",") if d]
     try:
-        failures = check(args.file, args.expect_epsg, dims, args.expect_count, args.expect_gps_time)
+        failures = check(args.file, args.expect_epsg, dims, args.expect_count,
+                         args.expect_gps_time, shares)
     except Exception as e:  # noqa: BLE001 - any reader failure is a check failure
         failures = [f"{type(e).__name__}: {e}"]
     for f in failures:

@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use kinescan::georef::Sensor;
+use kinescan::io::las::FRACTION_SCALE;
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
 use kinescan::pipeline::config;
@@ -133,7 +134,8 @@ fn quiet() -> RunOptions {
 /// Extra dimension names and per-point f32 values of a LAS file.
 fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
     let mut reader = las::Reader::from_path(path).unwrap();
-    let names = reader
+    // (name, size): float32 (data_type 9) or a scaled fraction byte (data_type 1).
+    let dims: Vec<(String, usize)> = reader
         .header()
         .all_vlrs()
         .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
@@ -141,9 +143,14 @@ fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
             v.data
                 .chunks(192)
                 .map(|d| {
-                    String::from_utf8_lossy(&d[4..36])
-                        .trim_end_matches('\0')
-                        .to_string()
+                    let name = String::from_utf8_lossy(&d[4..36]);
+                    let name = name.trim_end_matches('\0');
+                    let size = match d[2] {
+                        1 => 1,
+                        9 => 4,
+                        t => panic!("data_type {t}"),
+                    };
+                    (name.to_string(), size)
                 })
                 .collect()
         })
@@ -153,14 +160,21 @@ fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
         .unwrap()
         .points()
         .map(|p| {
-            p.unwrap()
-                .extra_bytes
-                .chunks(4)
-                .map(|b| f32::from_le_bytes(b.try_into().unwrap()))
+            let bytes = p.unwrap().extra_bytes;
+            let mut at = 0;
+            dims.iter()
+                .map(|(_, size)| {
+                    let b = &bytes[at..at + size];
+                    at += size;
+                    match size {
+                        1 => (f64::from(b[0]) * FRACTION_SCALE) as f32,
+                        _ => f32::from_le_bytes(b.try_into().unwrap()),
+                    }
+                })
                 .collect()
         })
         .collect();
-    (names, values)
+    (dims.into_iter().map(|d| d.0).collect(), values)
 }
 
 /// With INS sigmas only, the position sigma passes straight to the point: sigma_z = down
@@ -287,8 +301,10 @@ fn written_sigmas_equal_the_library_propagation() {
             worst = worst.max(rel);
             assert!(rel < 2e-5, "field {k}: {} vs {}", v[1 + k], want[k]);
         }
+        // Shares are stored in steps of FRACTION_SCALE (0.004): within half a step.
         for g in 0..6 {
-            assert!((v[6 + g] as f64 - shares[g]).abs() < 2e-5);
+            let stored = f64::from(v[6 + g]);
+            assert!((stored - shares[g]).abs() <= 0.5 * FRACTION_SCALE + 1e-6);
         }
     }
     println!("LAS sigmas vs library: worst relative difference {worst:e}");

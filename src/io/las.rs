@@ -53,7 +53,14 @@ pub enum ExtraType {
     F32,
     /// IEEE 754 double (data_type 10, 8 bytes).
     F64,
+    /// A fraction 0..=1 as an unsigned char (data_type 1, 1 byte) with scale
+    /// [`FRACTION_SCALE`] in the descriptor: stored `round(v / scale)`, resolution 0.4%.
+    /// Readers that apply the scale (laspy, PDAL, LAStools) show the fraction.
+    FractionU8,
 }
+
+/// Scale of [`ExtraType::FractionU8`]: 250 steps for 0..=1.
+pub const FRACTION_SCALE: f64 = 0.004;
 
 impl ExtraType {
     /// Bytes per value in a record.
@@ -61,6 +68,7 @@ impl ExtraType {
         match self {
             ExtraType::F32 => 4,
             ExtraType::F64 => 8,
+            ExtraType::FractionU8 => 1,
         }
     }
 
@@ -69,6 +77,15 @@ impl ExtraType {
         match self {
             ExtraType::F32 => 9,
             ExtraType::F64 => 10,
+            ExtraType::FractionU8 => 1,
+        }
+    }
+
+    /// The descriptor's scale, if the type has one.
+    pub fn scale(self) -> Option<f64> {
+        match self {
+            ExtraType::FractionU8 => Some(FRACTION_SCALE),
+            ExtraType::F32 | ExtraType::F64 => None,
         }
     }
 }
@@ -99,6 +116,15 @@ impl ExtraDim {
         ExtraDim {
             name: name.into(),
             data_type: ExtraType::F64,
+            description: description.into(),
+        }
+    }
+
+    /// A fraction (0..=1) stored in one byte ([`ExtraType::FractionU8`]).
+    pub fn fraction(name: &str, description: &str) -> Self {
+        ExtraDim {
+            name: name.into(),
+            data_type: ExtraType::FractionU8,
             description: description.into(),
         }
     }
@@ -427,6 +453,8 @@ pub fn encode_points(
             match dim.data_type {
                 ExtraType::F32 => rec[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
                 ExtraType::F64 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
+                // Saturating: outside 0..=1 (or NaN, stored 0) is not a fraction.
+                ExtraType::FractionU8 => rec[at] = (v / FRACTION_SCALE).round() as u8,
             }
         }
         stats.add(counts, p.return_number, gps_time);
@@ -753,12 +781,16 @@ fn push_vlr(
     Ok(())
 }
 
-/// LAS 1.4 R15 EXTRA_BYTES struct (192 bytes): reserved[2], data_type, options (0: no no_data,
-/// min, max, scale or offset), name[32], unused[4], no_data, min, max, scale, offset with
-/// their deprecated gaps (all zero), description[32].
+/// LAS 1.4 R15 EXTRA_BYTES struct (192 bytes): reserved[2], data_type, options (bit 3: scale
+/// given; no no_data, min, max or offset), name[32], unused[4], no_data[3], min[3], max[3],
+/// scale[3] (f64 at 112, only the first used), offset[3], description[32]; unused fields zero.
 fn extra_bytes_descriptor(dim: &ExtraDim) -> [u8; EXTRA_BYTES_DESCRIPTOR_LEN] {
     let mut d = [0u8; EXTRA_BYTES_DESCRIPTOR_LEN];
     d[2] = dim.data_type.data_type_code();
+    if let Some(scale) = dim.data_type.scale() {
+        d[3] = 1 << 3;
+        d[112..120].copy_from_slice(&scale.to_le_bytes());
+    }
     d[4..36].copy_from_slice(&fixed_32(&dim.name));
     d[160..192].copy_from_slice(&fixed_32(&dim.description));
     d

@@ -359,8 +359,8 @@ pub struct UncertaintyConfig {
     /// follow from `sigma_x/y/z`, and cost 8 bytes a point.
     #[serde(default)]
     pub write_95: bool,
-    /// Also write the per-group variance shares `share_<group>` (fractions). Default false:
-    /// 24 bytes a point.
+    /// Also write the per-group variance shares `share_<group>` (fractions, one scaled byte
+    /// each). Default false: 6 bytes a point.
     #[serde(default)]
     pub write_shares: bool,
 }

@@ -107,7 +107,7 @@ impl ExtraSlots {
 /// Uncertainty extra dimensions (docs/uncertainty.md): `sigma_x`, `sigma_y`, `sigma_z` (1 sigma
 /// along the file's X, Y, Z, m); with `write_95`, `thu95` and `tvu95` (95% horizontal and
 /// vertical, m); with `write_shares`, `share_<group>` for the six groups (fraction of the 3D
-/// variance, 0-1), in [`crate::uncertainty::Group`] order.
+/// variance, 0-1, one scaled byte each), in [`crate::uncertainty::Group`] order.
 pub fn uncertainty_dims(u: &UncertaintyConfig) -> Vec<ExtraDim> {
     let mut dims = vec![
         ExtraDim::f32("sigma_x", "1-sigma along X (m)"),
@@ -122,7 +122,7 @@ pub fn uncertainty_dims(u: &UncertaintyConfig) -> Vec<ExtraDim> {
         for g in crate::uncertainty::Group::ALL {
             let name = format!("share_{}", g.name());
             let desc = format!("{} variance share", g.name());
-            dims.push(ExtraDim::f32(&name, &desc));
+            dims.push(ExtraDim::fraction(&name, &desc));
         }
     }
     dims
