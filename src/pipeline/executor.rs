@@ -15,8 +15,7 @@ use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::ScannerClock;
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
 use crate::uncertainty::model::FrameCache;
-use crate::uncertainty::propagate::AxisVariances;
-use crate::uncertainty::propagate::{Propagator, TVU95_FACTOR};
+use crate::uncertainty::propagate::{AxisVariances, Propagator, TVU95_FACTOR};
 use crate::{Error, Result};
 use nalgebra::Vector3;
 use rayon::prelude::*;
@@ -72,20 +71,20 @@ struct UncertaintyOut {
 }
 
 impl UncertaintyOut {
-    /// Writes the uncertainty extra dimensions of `cov` into `extra` (order of
+    /// Writes the uncertainty extra dimensions of `var` into `extra` (order of
     /// [`super::sink::uncertainty_dims`]).
-    fn fill(&self, cov: &AxisVariances, extra: &mut [f64]) {
+    fn fill(&self, var: &AxisVariances, extra: &mut [f64]) {
         let mut values = [0.0; 11];
-        let sigma = cov.sigma_xyz_m();
+        let sigma = var.sigma_xyz_m();
         values[..3].copy_from_slice(sigma.as_slice());
         let mut n = 3;
         if self.write_95 {
-            let tvu95 = TVU95_FACTOR * sigma.z; // = cov.tvu95_m() without a second sqrt
-            values[n..n + 2].copy_from_slice(&[cov.thu95_m(), tvu95]);
+            let tvu95 = TVU95_FACTOR * sigma.z; // = var.tvu95_m() without a second sqrt
+            values[n..n + 2].copy_from_slice(&[var.thu95_m(), tvu95]);
             n += 2;
         }
         if self.write_shares {
-            values[n..n + 6].copy_from_slice(&cov.shares());
+            values[n..n + 6].copy_from_slice(&var.shares());
             n += 6;
         }
         extra[self.first_dim..self.first_dim + n].copy_from_slice(&values[..n]);
@@ -209,7 +208,7 @@ impl Georeferencer<'_> {
             // Reuses the georeferencing terms; the map axes and the local-level turn come
             // from the cache.
             let (r_n_to_map, dtheta) = frames.frames(&x_e, &pose.nav);
-            let cov = u.propagator.variances(
+            let var = u.propagator.variances(
                 r_n_to_map,
                 dtheta,
                 &terms,
@@ -218,7 +217,7 @@ impl Georeferencer<'_> {
                 &nav_sigma,
                 self.clock_partials(r),
             );
-            u.fill(&cov, &mut p.extra);
+            u.fill(&var, &mut p.extra);
         }
         Ok(t)
     }
@@ -652,6 +651,8 @@ impl<'f> FileAccumulator<'f> {
         }
     }
 
+    /// Takes one chunk's result in input order: checks, counts, writes its records and hashes
+    /// its input; gives the emptied record buffer back for reuse.
     fn absorb(
         &mut self,
         r: std::ops::Range<usize>,
