@@ -119,7 +119,8 @@ fn run_once(dir: &Path, file: &str, threads: usize) -> (f64, f64, f64) {
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
-    v[v.len() / 2]
+    let n = v.len();
+    (v[(n - 1) / 2] + v[n / 2]) / 2.0
 }
 
 fn main() {

@@ -453,8 +453,10 @@ pub fn encode_points(
             match dim.data_type {
                 ExtraType::F32 => rec[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
                 ExtraType::F64 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
-                // Saturating: outside 0..=1 (or NaN, stored 0) is not a fraction.
-                ExtraType::FractionU8 => rec[at] = (v / FRACTION_SCALE).round() as u8,
+                // Clamped to 0..=1 (NaN is stored as 0).
+                ExtraType::FractionU8 => {
+                    rec[at] = (v.clamp(0.0, 1.0) / FRACTION_SCALE).round() as u8;
+                }
             }
         }
         stats.add(counts, p.return_number, gps_time);

@@ -422,9 +422,9 @@ pub fn r_e_to_map_axes(frame: &MapFrame, x_e: &Vector3<f64>) -> Matrix3<f64> {
 ///
 /// These matrices turn by about `(1 + tan(lat)) / 6.4e6` rad per metre (local vertical plus
 /// grid convergence: 3.3e-7 rad/m at 48 deg, 1.9e-6 rad/m at 85 deg); the UTM scale changes by
-/// < 1e-8 per metre. Within 25 m a sigma therefore changes by < 8.5e-6 (48 deg; 5e-5 at
-/// 85 deg) times the ratio of the other axes' sigma to its own: far below the accuracy of any
-/// input sigma.
+/// < 1e-8 per metre. Within 25 m each cached matrix is off by < 8.5e-6 rad (48 deg; 5e-5 at
+/// 85 deg), their product by twice that, so a sigma changes by < 1.7e-5 (1e-4 at 85 deg) times
+/// the ratio of the other axes' sigma to its own: far below the accuracy of any input sigma.
 #[derive(Debug, Clone)]
 pub struct FrameCache {
     frame: MapFrame,
