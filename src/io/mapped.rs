@@ -90,13 +90,24 @@ impl MappedRecords {
     }
 }
 
+/// How far before a released range to release too: the largest page-cache folio mapped at
+/// once on x86-64 (a PMD, 2 MiB), which covers the default 64 KiB fault-around window.
+const RELEASE_BEHIND_BYTES: usize = 2 << 20;
+
 impl MappedRecords {
     /// Tells the kernel the pages of records `range` are no longer needed by this process, so
     /// resident memory stays flat however large the file (they are re-read if touched again).
+    ///
+    /// Also releases the [`RELEASE_BEHIND_BYTES`] before the range: a page fault maps the
+    /// already-cached neighbours of the faulting page (Linux "fault-around": a 64 KiB window,
+    /// or a whole large folio of the page cache, up to 2 MiB), which can bring back the tail of
+    /// the range released just before; without this, every chunk boundary kept up to that much
+    /// resident (74 MB over 1,220 chunks of a 0.8 GB file).
     pub fn release(&self, range: std::ops::Range<usize>) {
         let Some(map) = self.map.as_ref() else { return };
         const PAGE: usize = 4096;
-        let start = (self.header_bytes + range.start * self.record_bytes) / PAGE * PAGE;
+        let first = self.header_bytes + range.start * self.record_bytes;
+        let start = first.saturating_sub(RELEASE_BEHIND_BYTES) / PAGE * PAGE;
         let end = (self.header_bytes + range.end * self.record_bytes).min(map.len());
         if end > start {
             // SAFETY: the map is private and read-only; dropping its pages only makes later

@@ -30,7 +30,9 @@ pub struct RunOptions {
     pub threads: Option<usize>,
     /// Show a progress bar (only drawn when stderr is a terminal).
     pub progress: bool,
-    /// Returns per parallel work item.
+    /// Returns per parallel work item (default 16,384). A batch of 8 items per thread is in
+    /// flight while the writer takes the previous one: small items keep both workers busy
+    /// while the writer thread shares their cores.
     pub chunk_returns: usize,
 }
 
@@ -39,7 +41,7 @@ impl Default for RunOptions {
         RunOptions {
             threads: None,
             progress: true,
-            chunk_returns: 1 << 16,
+            chunk_returns: 1 << 14,
         }
     }
 }
@@ -593,7 +595,7 @@ fn process_file(
 ) -> Result<InputReport> {
     let n = file.len();
     let chunk = opts.chunk_returns.max(1);
-    let batch = chunk * rayon::current_num_threads() * 2;
+    let batch = chunk * rayon::current_num_threads() * 8;
     let layout = sink.layout().clone();
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let mut acc = FileAccumulator::new(file, strictness);
