@@ -12,7 +12,7 @@ use crate::geo::rotations::{q_b_to_n, wrap_pi};
 use crate::io::sbet::{SbetFile, SbetRecord};
 use crate::io::smrmsg::{SmrmsgFile, SmrmsgRecord, RAD_PER_ARCMIN};
 use crate::Result;
-use nalgebra::{Quaternion, UnitQuaternion, Vector3};
+use nalgebra::{Quaternion, UnitQuaternion, Vector3, Vector4};
 use std::path::Path;
 
 /// Navigation state at one instant.
@@ -68,27 +68,61 @@ impl NavSample {
 /// Spherical linear interpolation from `a` (w = 0) to `b` (w = 1) along the shorter arc.
 #[inline]
 pub fn slerp(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>, w: f64) -> UnitQuaternion<f64> {
-    let (qa, mut qb) = (a.quaternion().coords, b.quaternion().coords);
-    let mut dot = qa.dot(&qb);
-    if dot < 0.0 {
-        qb = -qb;
-        dot = -dot;
+    Slerp::new(a, b).at(w)
+}
+
+/// [`slerp`] between one pair of attitudes, with the pair's constants (shortest-path sign,
+/// angle, `1 / sin(angle)`) computed once for many weights.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Slerp {
+    qa: Vector4<f64>,
+    qb: Vector4<f64>,
+    theta: f64,
+    inv_sin_theta: f64,
+}
+
+impl Slerp {
+    /// From `a` (weight 0) to `b` (weight 1).
+    pub fn new(a: &UnitQuaternion<f64>, b: &UnitQuaternion<f64>) -> Self {
+        let (qa, mut qb) = (a.quaternion().coords, b.quaternion().coords);
+        let mut dot = qa.dot(&qb);
+        if dot < 0.0 {
+            qb = -qb;
+            dot = -dot;
+        }
+        let theta = dot.min(1.0).acos();
+        Slerp {
+            qa,
+            qb,
+            theta,
+            inv_sin_theta: 1.0 / theta.sin(),
+        }
     }
-    let theta = dot.min(1.0).acos();
-    let coords = if theta < 1e-6 {
-        // Linear blend: error O(theta^3) < 1e-18 rad here.
-        qa * (1.0 - w) + qb * w
-    } else {
-        let s = theta.sin();
-        qa * (((1.0 - w) * theta).sin() / s) + qb * ((w * theta).sin() / s)
-    };
-    UnitQuaternion::from_quaternion(Quaternion::from(coords))
+
+    /// The attitude at weight `w`.
+    #[inline]
+    pub fn at(&self, w: f64) -> UnitQuaternion<f64> {
+        let coords = if self.theta < 1e-6 {
+            // Linear blend: error O(theta^3) < 1e-18 rad here.
+            self.qa * (1.0 - w) + self.qb * w
+        } else {
+            let (t, k) = (self.theta, self.inv_sin_theta);
+            self.qa * (((1.0 - w) * t).sin() * k) + self.qb * ((w * t).sin() * k)
+        };
+        UnitQuaternion::from_quaternion(Quaternion::from(coords))
+    }
 }
 
 /// Interpolates between `a` and `b` at `t` (normally `a.t_s <= t <= b.t_s`; a small
 /// extrapolation is linear too).
 #[inline]
 pub fn interpolate(a: &NavSample, b: &NavSample, t: f64) -> NavSample {
+    interpolate_with(a, b, &Slerp::new(&a.q_b_to_n, &b.q_b_to_n), t)
+}
+
+/// [`interpolate`] with the attitude pair's [`Slerp`] given.
+#[inline]
+fn interpolate_with(a: &NavSample, b: &NavSample, attitude: &Slerp, t: f64) -> NavSample {
     let w = (t - a.t_s) / (b.t_s - a.t_s);
     let lerp = |x: f64, y: f64| x + w * (y - x);
     NavSample {
@@ -97,7 +131,7 @@ pub fn interpolate(a: &NavSample, b: &NavSample, t: f64) -> NavSample {
         lat_rad: lerp(a.lat_rad, b.lat_rad),
         lon_rad: wrap_pi(a.lon_rad + w * wrap_pi(b.lon_rad - a.lon_rad)),
         h_m: lerp(a.h_m, b.h_m),
-        q_b_to_n: slerp(&a.q_b_to_n, &b.q_b_to_n, w),
+        q_b_to_n: attitude.at(w),
         v_n_mps: a.v_n_mps + (b.v_n_mps - a.v_n_mps) * w,
         omega_b_radps: a.omega_b_radps + (b.omega_b_radps - a.omega_b_radps) * w,
     }
@@ -176,6 +210,7 @@ impl Trajectory {
             idx: usize::MAX,
             a: None,
             b: None,
+            attitude: None,
         }
     }
 
@@ -212,12 +247,14 @@ fn locate(len: usize, time: impl Fn(usize) -> f64, hint: usize, t: f64) -> Optio
     Some(lo)
 }
 
-/// Interpolating cursor over the SBET; caches the current interval's decoded records.
+/// Interpolating cursor over the SBET; caches the current interval's decoded records and
+/// their [`Slerp`].
 pub struct NavCursor<'a> {
     traj: &'a Trajectory,
     idx: usize,
     a: Option<NavSample>,
     b: Option<NavSample>,
+    attitude: Option<Slerp>,
 }
 
 impl NavCursor<'_> {
@@ -232,18 +269,20 @@ impl NavCursor<'_> {
                 (Some(b), true) => b,
                 _ => NavSample::from_sbet(&sbet.record(i)),
             };
-            self.a = Some(a);
-            self.b = Some(NavSample::from_sbet(&sbet.record(i + 1)));
+            let b = NavSample::from_sbet(&sbet.record(i + 1));
+            self.attitude = Some(Slerp::new(&a.q_b_to_n, &b.q_b_to_n));
+            (self.a, self.b) = (Some(a), Some(b));
             self.idx = i;
         }
-        let (a, b) = (
+        let (a, b, attitude) = (
             self.a.as_ref().expect("set above"),
             self.b.as_ref().expect("set above"),
+            self.attitude.as_ref().expect("set above"),
         );
         if b.t_s - a.t_s > self.traj.opts.max_gap_s {
             return Err(NavGap::TrajectoryGap);
         }
-        Ok(interpolate(a, b, t))
+        Ok(interpolate_with(a, b, attitude, t))
     }
 }
 
