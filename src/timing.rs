@@ -60,19 +60,33 @@ impl ScannerClock {
     /// GPS time (s) of a return of `profile` at mirror angle `beta_rad`.
     #[inline]
     pub fn time_of(&self, profile: u32, beta_rad: f64) -> f64 {
-        self.t0_s + self.period_s * (profile as f64 + self.mirror.fraction(beta_rad))
+        self.time_and_partials(profile, beta_rad).0
     }
 
     /// Partial derivatives of [`Self::time_of`] with respect to (t0, T): (1, n + f(beta)).
     #[inline]
     pub fn partials(&self, profile: u32, beta_rad: f64) -> (f64, f64) {
-        (1.0, profile as f64 + self.mirror.fraction(beta_rad))
+        self.time_and_partials(profile, beta_rad).1
+    }
+
+    /// [`Self::time_of`] and [`Self::partials`] together (the mirror fraction computed once).
+    #[inline]
+    pub fn time_and_partials(&self, profile: u32, beta_rad: f64) -> (f64, (f64, f64)) {
+        let k = profile as f64 + self.mirror.fraction(beta_rad);
+        (self.t0_s + self.period_s * k, (1.0, k))
     }
 
     /// GPS time (s) of a return tagged with its profile's hardware start time `t_n_s`.
     #[inline]
     pub fn time_from_profile_tag(&self, t_n_s: f64, beta_rad: f64) -> f64 {
-        t_n_s + self.period_s * self.mirror.fraction(beta_rad)
+        self.time_from_profile_tag_and_partial(t_n_s, beta_rad).0
+    }
+
+    /// [`Self::time_from_profile_tag`] and its partial with respect to T, `f(beta)`.
+    #[inline]
+    pub fn time_from_profile_tag_and_partial(&self, t_n_s: f64, beta_rad: f64) -> (f64, f64) {
+        let f = self.mirror.fraction(beta_rad);
+        (t_n_s + self.period_s * f, f)
     }
 }
 

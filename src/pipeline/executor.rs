@@ -139,25 +139,22 @@ impl Georeferencer<'_> {
         }
     }
 
-    /// GPS time (s) of a return, per the configured time model.
+    /// GPS time (s) of a return, per the configured time model, and its partials with
+    /// respect to the clock parameters (t0, T) (the mirror fraction is computed once).
     #[inline]
-    fn time_of(&self, r: &RawReturn) -> f64 {
-        match self.model {
-            TimeModel::Software => self.clock.time_of(r.profile, r.beta_rad),
-            TimeModel::HardwareProfile => self.clock.time_from_profile_tag(r.time_s, r.beta_rad),
-            TimeModel::HardwareReturn => r.time_s,
-        }
-    }
-
-    /// Partials of a return's time with respect to the clock parameters (t0, T).
-    fn clock_partials(&self, r: &RawReturn) -> [f64; 2] {
+    fn time_of(&self, r: &RawReturn) -> (f64, [f64; 2]) {
         match self.model {
             TimeModel::Software => {
-                let (a, b) = self.clock.partials(r.profile, r.beta_rad);
-                [a, b]
+                let (t, (a, b)) = self.clock.time_and_partials(r.profile, r.beta_rad);
+                (t, [a, b])
             }
-            TimeModel::HardwareProfile => [0.0, self.clock.mirror.fraction(r.beta_rad)],
-            TimeModel::HardwareReturn => [0.0, 0.0],
+            TimeModel::HardwareProfile => {
+                let (t, f) = self
+                    .clock
+                    .time_from_profile_tag_and_partial(r.time_s, r.beta_rad);
+                (t, [0.0, f])
+            }
+            TimeModel::HardwareReturn => (r.time_s, [0.0, 0.0]),
         }
     }
 
@@ -185,7 +182,7 @@ impl Georeferencer<'_> {
         if !(self.min_range_m..=self.max_range_m).contains(&r.range_m) {
             return Err(RejectReason::RangeOutOfLimits);
         }
-        let t = self.time_of(r);
+        let (t, dt_dclock) = self.time_of(r);
         let pose = cursor.at(t)?;
         let nav_sigma = match sigmas {
             Some((cursor, frames)) => Some((cursor.at(t)?, frames)),
@@ -217,7 +214,7 @@ impl Georeferencer<'_> {
                 &pose.omega_b_radps,
                 &pose.nav.v_n_mps,
                 &nav_sigma,
-                self.clock_partials(r),
+                dt_dclock,
             );
             u.fill(&var, &mut p.extra);
         }
