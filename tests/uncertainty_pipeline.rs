@@ -7,7 +7,6 @@ use common::*;
 use kinescan::georef::Sensor;
 use kinescan::io::las::FRACTION_SCALE;
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
-use kinescan::io::smrmsg::{SmrmsgRecord, SmrmsgWriter};
 use kinescan::pipeline::config;
 use kinescan::pipeline::executor::{run, RunOptions};
 use kinescan::pipeline::report::RejectReason;
@@ -194,7 +193,7 @@ fn ins_sigmas_reach_the_las_along_the_map_axes() {
         &dir.path().join("pos_only.smrmsg"),
         T_START_S,
         DURATION_S,
-        0.0,
+        [0.0; 3],
     );
     let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();
     let (names, values) = read_extra(&dir.path().join("out/cloud.las"));
@@ -221,28 +220,6 @@ fn ins_sigmas_reach_the_las_along_the_map_axes() {
         );
         assert!((v[4] - 1.0).abs() < 1e-6 && v[5..].iter().all(|s| *s == 0.0));
     }
-}
-
-/// Writes an SMRMSG at 1 Hz over `[t0, t0 + span]`: position 0.02/0.02/0.04 m, attitude
-/// `att_arcmin`.
-fn write_smrmsg(path: &Path, t0: f64, span: f64, att_arcmin: f64) {
-    let mut s = SmrmsgWriter::create(path).unwrap();
-    for k in 0..=(span as usize) {
-        s.push(&SmrmsgRecord {
-            time_s: t0 + k as f64,
-            north_m: 0.02,
-            east_m: 0.02,
-            down_m: 0.04,
-            vel_north_mps: 0.01,
-            vel_east_mps: 0.01,
-            vel_down_mps: 0.01,
-            roll_arcmin: att_arcmin,
-            pitch_arcmin: att_arcmin,
-            heading_arcmin: att_arcmin,
-        })
-        .unwrap();
-    }
-    s.finish().unwrap();
 }
 
 /// Every written point carries the library's propagated covariance for its return (the
@@ -315,7 +292,12 @@ fn written_sigmas_equal_the_library_propagation() {
 fn returns_outside_the_smrmsg_span_are_rejected() {
     let dir = tempfile::tempdir().unwrap();
     write_trajectory(dir.path());
-    write_smrmsg(&dir.path().join("short.smrmsg"), T_START_S + 5.0, 10.0, 0.3);
+    write_smrmsg(
+        &dir.path().join("short.smrmsg"),
+        T_START_S + 5.0,
+        10.0,
+        [0.3; 3],
+    );
     let raw = write_profiles(&dir.path().join("pass.ksprof"), 2);
     let path = write_pipeline(dir.path(), "short.smrmsg", FULL);
     let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();

@@ -53,24 +53,30 @@ pub fn write_trajectory(dir: &Path) -> (PathBuf, PathBuf) {
         w.push(&r).unwrap();
     }
     w.finish().unwrap();
-    let mut s = SmrmsgWriter::create(&smrmsg).unwrap();
-    for k in 0..=(DURATION_S as usize) {
+    write_smrmsg(&smrmsg, T_START_S, DURATION_S, [0.3, 0.3, 1.0]);
+    (sbet, smrmsg)
+}
+
+/// Writes an SMRMSG at 1 Hz over `[t0, t0 + span]`: position 0.02/0.02/0.04 m, velocity
+/// 0.01 m/s, roll/pitch/heading `att_arcmin`.
+pub fn write_smrmsg(path: &Path, t0: f64, span: f64, att_arcmin: [f64; 3]) {
+    let mut s = SmrmsgWriter::create(path).unwrap();
+    for k in 0..=(span as usize) {
         let r = SmrmsgRecord {
-            time_s: T_START_S + k as f64,
+            time_s: t0 + k as f64,
             north_m: 0.02,
             east_m: 0.02,
             down_m: 0.04,
             vel_north_mps: 0.01,
             vel_east_mps: 0.01,
             vel_down_mps: 0.01,
-            roll_arcmin: 0.3,
-            pitch_arcmin: 0.3,
-            heading_arcmin: 1.0,
+            roll_arcmin: att_arcmin[0],
+            pitch_arcmin: att_arcmin[1],
+            heading_arcmin: att_arcmin[2],
         };
         s.push(&r).unwrap();
     }
     s.finish().unwrap();
-    (sbet, smrmsg)
 }
 
 /// A 64-bit linear congruential generator: deterministic test randomness without a seed
