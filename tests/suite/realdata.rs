@@ -2,29 +2,10 @@
 //! are external truth: PDAL's `test/unit/io/SbetReaderTest.cpp` (testReadAsRadians) for the
 //! SBET, the CSV published beside the SMRMSG for the SMRMSG.
 
+use crate::common::realdata;
 use kinescan::io::info::{describe, FileKind};
 use kinescan::io::sbet::SbetFile;
 use kinescan::io::smrmsg::SmrmsgFile;
-use std::path::PathBuf;
-
-/// The realdata folder: `$KINESCAN_REALDATA`, `../shared/realdata`, `/work/shared/realdata`;
-/// `None` (with a skip notice) when none exists.
-fn realdata(test: &str) -> Option<PathBuf> {
-    let candidates = std::env::var_os("KINESCAN_REALDATA")
-        .map(PathBuf::from)
-        .into_iter()
-        .chain([
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/realdata"),
-            PathBuf::from("/work/shared/realdata"),
-        ]);
-    for dir in candidates {
-        if dir.join("PROVENANCE.md").is_file() {
-            return Some(dir);
-        }
-    }
-    eprintln!("SKIPPED {test}: realdata not found ($KINESCAN_REALDATA, ../shared/realdata)");
-    None
-}
 
 /// PDAL's printed values (radians), 16 significant digits, both records, file field order.
 /// Kept exactly as printed (hence more digits than an f64 always distinguishes).

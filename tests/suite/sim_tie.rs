@@ -3,7 +3,7 @@
 //! coordinates to <= 0.1 mm for every return. Also: determinism across thread counts, and
 //! refusal of bad scenario files with the key named.
 
-mod sim_support;
+use crate::sim_support;
 use sim_support::*;
 
 #[test]
@@ -15,10 +15,7 @@ fn error_free_survey_georeferences_onto_truth() {
         run(&sc, dir.path(), 2);
         let pairs = georef_pairs(dir.path());
         assert!(pairs.len() > 50_000, "only {} valid returns", pairs.len());
-        let worst = pairs
-            .iter()
-            .map(|p| (p.x_e - p.truth_e).norm())
-            .fold(0.0, f64::max);
+        let worst = crate::common::max_of(pairs.iter().map(|p| (p.x_e - p.truth_e).norm()));
         println!(
             "pps {pps}: {} returns, worst |pipeline - truth| = {worst:.3e} m",
             pairs.len()

@@ -4,7 +4,7 @@
 //! expectation built from the pipeline's own pose and beam and, for the time-like effects, the
 //! true trajectory's velocity and rotation rate.
 
-mod sim_support;
+use crate::sim_support;
 use kinescan::geo::ellipsoid::r_n_to_e;
 use kinescan::geo::rotations::r_zyx;
 use kinescan::sim::Scenario;
@@ -43,7 +43,7 @@ fn check(
             p.profile,
             p.beta_rad
         );
-        largest = largest.max(d.norm());
+        crate::common::raise_max(&mut largest, d.norm());
         checked += 1;
     }
     println!("{name}: {checked} returns, largest displacement {largest:.4} m");

@@ -37,7 +37,10 @@ fn quadratic_expansion_error_below_a_micrometre() {
                             * 0.999
                             * uniform().abs();
                         let x = centre + d;
-                        worst = worst.max((local.ecef_to_map(&x) - frame.ecef_to_map(&x)).norm());
+                        crate::common::raise_max(
+                            &mut worst,
+                            (local.ecef_to_map(&x) - frame.ecef_to_map(&x)).norm(),
+                        );
                     }
                 }
             }

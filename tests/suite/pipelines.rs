@@ -15,11 +15,13 @@ fn pipelines() -> PathBuf {
 fn covered_by(name: &str) -> Option<&'static str> {
     match name {
         "demo_city_block.toml" => Some("the_demo_runs_and_matches_the_truth"),
-        n if n.starts_with("scenario_") => Some("scenarios_load (and tests/sim_*.rs run them)"),
+        n if n.starts_with("scenario_") => {
+            Some("scenarios_load (and tests/suite/sim_*.rs run them)")
+        }
         "calib_latency.toml" | "calib_boresight.toml" => Some("calibration_templates_load"),
-        "calib_sim_table.toml" | "calib_sim_tripod.toml" => Some("tests/calib_e2e.rs"),
+        "calib_sim_table.toml" | "calib_sim_tripod.toml" => Some("tests/suite/calib_e2e.rs"),
         "sensitivity_parking_lot_expected.toml" | "sensitivity_parking_lot_ideal.toml" => {
-            Some("tests/uncertainty_parking_lot.rs")
+            Some("tests/suite/uncertainty_parking_lot.rs")
         }
         _ => None,
     }

@@ -1,7 +1,7 @@
 //! The pipeline with an `[uncertainty]` table: sigma extra dimensions in the LAS, their values,
 //! rejection outside the SMRMSG span, configuration errors, and the run-time overhead.
 
-mod common;
+use crate::common;
 
 use common::*;
 use kinescan::georef::Sensor;

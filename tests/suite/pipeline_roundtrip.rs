@@ -3,7 +3,7 @@
 //! headings, roll/pitch to +-30 deg, non-identity boresight and lever arm, non-zero latency
 //! and alpha. Also: read = written + rejected, 1 vs N threads byte-identical, splitting.
 
-mod common;
+use crate::common;
 
 use common::*;
 use kinescan::geo::ellipsoid::ecef_to_geodetic;
@@ -197,7 +197,7 @@ fn known_points_come_back_to_a_tenth_of_a_millimetre() {
     let mut worst: f64 = 0.0;
     for (p, x_e) in points.iter().zip(&f.truth_e) {
         let truth = frame.geodetic_to_map(ecef_to_geodetic(x_e));
-        worst = worst.max((Vector3::new(p.x, p.y, p.z) - truth).norm());
+        common::raise_max(&mut worst, (Vector3::new(p.x, p.y, p.z) - truth).norm());
     }
     // 0.1 mm is the bound; LAS quantisation at 1e-5 m adds at most 8.7 um (3D).
     println!("worst 3D error over {n} points: {worst:.3e} m");
@@ -453,13 +453,9 @@ fn hardware_time_tags_per_return_and_per_profile() {
         .unwrap();
         assert_eq!(report.totals.written, f.truth_e.len() as u64, "{model}");
         let pts = read_las(&d.join(format!("out/{model}.las")));
-        let worst = pts
-            .iter()
-            .zip(&f.truth_e)
-            .map(|(p, x)| {
-                (Vector3::new(p.x, p.y, p.z) - frame.geodetic_to_map(ecef_to_geodetic(x))).norm()
-            })
-            .fold(0.0, f64::max);
+        let worst = common::max_of(pts.iter().zip(&f.truth_e).map(|(p, x)| {
+            (Vector3::new(p.x, p.y, p.z) - frame.geodetic_to_map(ecef_to_geodetic(x))).norm()
+        }));
         // Same bound as the software-clock round trip (quantisation 8.7 um).
         assert!(worst <= 1e-4, "{model}: worst {worst} m");
     }
@@ -511,11 +507,11 @@ fn ecef_and_local_enu_frames_come_back_too() {
         .unwrap();
         assert_eq!(report.epsg, epsg);
         let pts = read_las(&d.join(format!("out/frame{k}.las")));
-        let worst = pts
-            .iter()
-            .zip(&f.truth_e)
-            .map(|(p, x)| (Vector3::new(p.x, p.y, p.z) - frame.ecef_to_map(x)).norm())
-            .fold(0.0, f64::max);
+        let worst = common::max_of(
+            pts.iter()
+                .zip(&f.truth_e)
+                .map(|(p, x)| (Vector3::new(p.x, p.y, p.z) - frame.ecef_to_map(x)).norm()),
+        );
         // Same bound as the UTM round trip (quantisation at 1e-5 m: 8.7 um).
         assert!(worst <= 1e-4, "{value}: worst {worst} m");
     }

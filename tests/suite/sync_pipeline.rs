@@ -2,7 +2,7 @@
 //! only approximately; the sync estimate replaces `[time]`, goes in the run report with its
 //! sigmas, sightings and plots; bad `[sync]` tables are refused naming the key.
 
-mod sync_support;
+use crate::sync_support;
 
 use kinescan::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
 use kinescan::io::patches::{write_patches, PlanarPatch};
@@ -106,16 +106,13 @@ fn sync_stage_feeds_georeferencing_and_the_report() {
     run(&config::load(&path, &[]).unwrap(), &opts).unwrap();
     let mut r = las::Reader::from_path(dir.path().join("out/cloud.las")).unwrap();
     let pts = r.read_all().unwrap();
-    let worst_sigma = pts
-        .points()
-        .map(|p| {
-            let e = p.unwrap().extra_bytes;
-            (4..16)
-                .step_by(4)
-                .map(|o| f32::from_le_bytes(e[o..o + 4].try_into().unwrap()))
-                .fold(0.0f32, f32::max)
-        })
-        .fold(0.0f32, f32::max);
+    let sigmas = pts.points().flat_map(|p| {
+        let e = p.unwrap().extra_bytes;
+        (4..16)
+            .step_by(4)
+            .map(move |o| f32::from_le_bytes(e[o..o + 4].try_into().unwrap()) as f64)
+    });
+    let worst_sigma = crate::common::max_of(sigmas);
     assert!(
         worst_sigma > 0.0 && worst_sigma < 0.5,
         "largest sigma {worst_sigma} m"

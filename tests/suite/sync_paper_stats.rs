@@ -3,7 +3,7 @@
 //! sync plates each passed twice): the paper's method, the refined estimator against its
 //! Cramer-Rao bound, normalised errors, and the georeferenced sync targets after sync.
 
-mod sync_support;
+use crate::sync_support;
 
 use kinescan::georef::{georeference, point_s};
 use kinescan::sync::{cramer_rao_bound, estimate, SightingStatus};

@@ -1,7 +1,7 @@
 //! Real airborne SBET + LAS from gadomski/leeward (../shared/realdata/leeward, PROVENANCE.md):
 //! our SBET reader, trajectory interpolation and UTM agree with another project's data.
 
-mod common;
+use crate::common;
 
 use kinescan::geo::projection::MapFrame;
 use kinescan::trajectory::{Trajectory, TrajectoryOptions};
@@ -62,7 +62,7 @@ fn leeward_utm_and_ecef_files_agree_through_our_projection() {
     let mut worst: f64 = 0.0;
     for (u, e) in utm.iter().zip(&ecef) {
         let ours = frame.map_to_ecef(&Vector3::new(u.x, u.y, u.z));
-        worst = worst.max((ours - Vector3::new(e.x, e.y, e.z)).norm());
+        common::raise_max(&mut worst, (ours - Vector3::new(e.x, e.y, e.z)).norm());
     }
     // Both files store coordinates at 1 cm scale: at most 0.5 cm per axis each, so <= 1.8 cm.
     assert!(worst <= 0.018, "worst ECEF disagreement {worst} m");

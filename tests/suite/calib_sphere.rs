@@ -141,7 +141,7 @@ fn robust_fit_with_ten_percent_outliers_stays_within_two_sigma() {
             ((c - clean.centre_m).transpose() * inv * (c - clean.centre_m))[0].sqrt()
         };
         let robust = fit_sphere_robust(&all, SphereRadius::Known(RADIUS)).unwrap();
-        worst_robust = worst_robust.max(maha(robust.centre_m));
+        crate::common::raise_max(&mut worst_robust, maha(robust.centre_m));
         // A plain fit that does not converge counts as infinitely far.
         let plain = fit_sphere(&all, SphereRadius::Known(RADIUS))
             .map_or(f64::INFINITY, |f| maha(f.centre_m));

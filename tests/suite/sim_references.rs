@@ -3,7 +3,7 @@
 //! sphere, and returns from a sync target's face are saturated. Also checks the optional CSV
 //! profiles mirror the binary ones.
 
-mod sim_support;
+use crate::sim_support;
 use kinescan::io::patches::read_patches;
 use kinescan::io::points::read_control_points;
 use kinescan::io::profiles::ProfileFile;

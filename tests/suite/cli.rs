@@ -1,6 +1,6 @@
 //! The `kinescan` binary, run in a fresh temporary folder like a user would.
 
-mod common;
+use crate::common;
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use std::path::Path;

@@ -3,7 +3,7 @@
 //! place, targets that cannot constrain the refined estimator, an unobservable latency, and
 //! the hardware (PPS) comparison with its plots.
 
-mod sync_support;
+use crate::sync_support;
 
 use kinescan::sync::{estimate, plots::write_plots, Method, SightingStatus};
 use sync_support::{options, scenario, survey, PAPER};

@@ -116,7 +116,8 @@ pub fn r_n_to_e_origin() -> nalgebra::Matrix3<f64> {
 pub const FULL_TURN: f64 = TAU;
 
 /// The shared real-data folder: `$KINESCAN_REALDATA`, else `../shared/realdata` beside the
-/// crate. `None` (after printing a skip notice naming `test`) when absent.
+/// crate. When absent: a test failure if `KINESCAN_REQUIRE_REALDATA=1` (CI sets it, so the
+/// real-data tests cannot pass unseen), else `None` after printing `SKIPPED <test>`.
 pub fn realdata(test: &str) -> Option<PathBuf> {
     let candidates = [
         std::env::var_os("KINESCAN_REALDATA").map(PathBuf::from),
@@ -127,7 +128,27 @@ pub fn realdata(test: &str) -> Option<PathBuf> {
         .flatten()
         .find(|p| p.join("PROVENANCE.md").exists());
     if found.is_none() {
+        let required = std::env::var("KINESCAN_REQUIRE_REALDATA").is_ok_and(|v| v == "1");
+        assert!(
+            !required,
+            "{test}: ../shared/realdata not found and KINESCAN_REQUIRE_REALDATA=1"
+        );
         eprintln!("SKIPPED {test}: ../shared/realdata not found (set KINESCAN_REALDATA)");
     }
     found
+}
+
+/// The largest of `values` (0 for none), failing on NaN: `f64::max` drops a NaN, so an error
+/// that came out NaN would pass a bound checked against `fold(0.0, f64::max)`.
+pub fn max_of(values: impl IntoIterator<Item = f64>) -> f64 {
+    values.into_iter().fold(0.0, |acc, v| {
+        assert!(!v.is_nan(), "NaN among the values of a maximum");
+        acc.max(v)
+    })
+}
+
+/// `*acc = max(*acc, v)`, failing on NaN (see [`max_of`]).
+pub fn raise_max(acc: &mut f64, v: f64) {
+    assert!(!v.is_nan(), "NaN among the values of a maximum");
+    *acc = acc.max(v);
 }

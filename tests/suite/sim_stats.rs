@@ -8,7 +8,7 @@
 //! 0.5 sqrt(2 tau / T) = 1.1% and that of the lag-1 correlation-time estimate is
 //! sqrt(2 tau / T) = 2.2%: the 5% and 10% bounds sit at 4.5 standard errors.
 
-mod sim_support;
+use crate::sim_support;
 use kinescan::geo::ellipsoid::{meridian_radius_m, prime_vertical_radius_m};
 use kinescan::geo::rotations::wrap_pi;
 use kinescan::io::sbet::SbetFile;
