@@ -2,8 +2,7 @@
 //! build the sync targets (surveyed centres and face normals) and the truth.
 #![allow(dead_code)]
 
-#[path = "../sim_support/mod.rs"]
-mod sim_support;
+use crate::sim_support;
 
 use kinescan::georef::Sensor;
 use kinescan::io::points::read_control_points;
