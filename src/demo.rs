@@ -81,12 +81,7 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
     write_atomic(&pipeline, PIPELINE.as_bytes())?;
     let loaded = config::load(&pipeline, &[])?;
     let report = run(&loaded, run_opts)?;
-    let report_path = loaded
-        .config
-        .output
-        .report
-        .clone()
-        .unwrap_or_else(|| loaded.config.output.las.with_extension("report.json"));
+    let report_path = loaded.config.output.report_path();
     report.write(&report_path)?;
     let traj = Trajectory::open(
         &loaded.config.inputs.sbet,

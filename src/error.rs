@@ -46,6 +46,24 @@ pub enum Error {
         /// What is wrong, in words.
         problem: String,
     },
+    /// An output would overwrite an input, or two outputs are one file (`io::paths`).
+    #[error(
+        "`{output_key}` ({}) {problem} `{other_key}` ({}): choose another path for `{output_key}`",
+        output.display(),
+        other.display()
+    )]
+    Collision {
+        /// Key (config key or argument) that sets the output.
+        output_key: String,
+        /// The output path as given.
+        output: PathBuf,
+        /// Key of the input or output it collides with.
+        other_key: String,
+        /// That file's path as given.
+        other: PathBuf,
+        /// "is the same file as the input" or "... output".
+        problem: String,
+    },
     /// Arguments that cannot be processed (not tied to one file).
     #[error("{0}")]
     Invalid(String),

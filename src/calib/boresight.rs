@@ -29,6 +29,7 @@ use super::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
 use super::files::{self, CsvTable};
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
+use crate::io::paths::{check_collisions, in_out_dir};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
@@ -733,6 +734,25 @@ fn config_sites(
 pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<BoresightReport> {
     let cfg: BoresightConfig = files::load_toml(config_path)?;
     let setup = cfg.setup(&config_path.display().to_string())?;
+    let mut inputs = vec![
+        ("config file".to_string(), config_path.to_path_buf()),
+        (
+            "files.sites".into(),
+            files::resolve(config_path, &cfg.files.sites),
+        ),
+    ];
+    for (key, f) in [
+        ("files.centres", &cfg.files.centres),
+        ("files.scans", &cfg.files.scans),
+    ] {
+        if let Some(f) = f {
+            inputs.push((key.into(), files::resolve(config_path, f)));
+        }
+    }
+    check_collisions(
+        &inputs,
+        &in_out_dir(out_dir, &["boresight.json", "boresight_sites.csv"]),
+    )?;
     let sites = config_sites(&cfg, config_path, &setup)?;
     let report = estimate_boresight(&sites, &setup)?;
     files::write_json(&out_dir.join("boresight.json"), &report)?;

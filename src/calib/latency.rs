@@ -17,6 +17,7 @@
 use super::files::{self, CsvTable};
 use super::sphere::{fit_sphere_robust, SphereFit, SphereRadius};
 use crate::geo::rotations::{q_b_to_n, r_zyx};
+use crate::io::paths::{check_collisions, in_out_dir};
 use crate::io::profiles_csv::ProfileCsvReader;
 use crate::plot::Plot;
 use crate::{Error, Result};
@@ -602,6 +603,13 @@ pub fn read_attitude(path: &Path) -> Result<Vec<AttitudeSample>> {
     Ok(out)
 }
 
+/// Files a latency calibration writes into its output folder.
+pub const OUTPUT_FILES: [&str; 3] = [
+    "latency.json",
+    "latency_by_speed.csv",
+    "latency_by_speed.png",
+];
+
 /// `kinescan calibrate latency`: reads the TOML config at `config_path` (a [`LatencyConfig`];
 /// unknown keys refused, errors name the key and the file) and the files it names (paths
 /// relative to the config: SPEC 6 returns with `time_s`, the table's pass log, the IMU attitude
@@ -612,21 +620,28 @@ pub fn read_attitude(path: &Path) -> Result<Vec<AttitudeSample>> {
 pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<LatencyReport> {
     let cfg: LatencyConfig = files::load_toml(config_path)?;
     let setup = cfg.setup(&config_path.display().to_string())?;
+    let returns = files::resolve(config_path, &cfg.files.returns);
+    let passes = files::resolve(config_path, &cfg.files.passes);
+    let attitude = files::resolve(config_path, &cfg.files.attitude);
+    check_collisions(
+        &[
+            ("config file".into(), config_path.to_path_buf()),
+            ("files.returns".into(), returns.clone()),
+            ("files.passes".into(), passes.clone()),
+            ("files.attitude".into(), attitude.clone()),
+        ],
+        &in_out_dir(out_dir, &OUTPUT_FILES),
+    )?;
     let data = LatencyData {
-        returns: read_returns(
-            &files::resolve(config_path, &cfg.files.returns),
-            cfg.scanner.alpha0_deg.to_radians(),
-        )?,
-        passes: read_passes(&files::resolve(config_path, &cfg.files.passes))?,
-        attitude: read_attitude(&files::resolve(config_path, &cfg.files.attitude))?,
+        returns: read_returns(&returns, cfg.scanner.alpha0_deg.to_radians())?,
+        passes: read_passes(&passes)?,
+        attitude: read_attitude(&attitude)?,
     };
     let report = estimate_latency(&data, &setup)?;
-    files::write_json(&out_dir.join("latency.json"), &report)?;
-    files::write_atomic(
-        &out_dir.join("latency_by_speed.csv"),
-        speed_table_csv(&report).as_bytes(),
-    )?;
-    latency_plot(&report).save_png(out_dir.join("latency_by_speed.png"))?;
+    let [json, csv, png] = OUTPUT_FILES.map(|n| out_dir.join(n));
+    files::write_json(&json, &report)?;
+    files::write_atomic(&csv, speed_table_csv(&report).as_bytes())?;
+    latency_plot(&report).save_png(png)?;
     Ok(report)
 }
 

@@ -325,6 +325,15 @@ fn ray_stand_range(
     (t > 0.0 && (0.0..=len).contains(&z)).then_some(t)
 }
 
+/// Files a table simulation writes into its output folder.
+pub const OUTPUT_FILES: [&str; 5] = [
+    "sphere_returns.csv",
+    "table_passes.csv",
+    "imu_attitude.csv",
+    "calib_latency.toml",
+    "truth.json",
+];
+
 /// Writes the scenario's files as a lab would record them (`sphere_returns.csv`,
 /// `table_passes.csv`, `imu_attitude.csv`), the calibration config `calib_latency.toml` that
 /// reads them, and `truth.json`, atomically into `out_dir`.
@@ -396,6 +405,10 @@ pub struct TableSimulationReport {
 /// reads them and `truth.json` (see [`write_table_run`]).
 pub fn run_table_simulation(config_path: &Path, out_dir: &Path) -> Result<TableSimulationReport> {
     let sc: TableScenario = files::load_toml(config_path)?;
+    crate::io::paths::check_collisions(
+        &[("config file".into(), config_path.to_path_buf())],
+        &crate::io::paths::in_out_dir(out_dir, &OUTPUT_FILES),
+    )?;
     let data = simulate_table(&sc)?;
     write_table_run(&sc, &data, out_dir)?;
     Ok(TableSimulationReport {

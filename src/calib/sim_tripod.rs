@@ -408,6 +408,17 @@ pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Resu
     write_atomic(&out_dir.join(format!("{tag}_histograms.csv")), h.as_bytes())
 }
 
+/// Files a tripod simulation writes into its output folder (besides the Monte Carlo's
+/// `boresight_mc_*` files).
+pub const OUTPUT_FILES: [&str; 6] = [
+    "tripod_centres.csv",
+    "tripod_sites.csv",
+    "calib_boresight.toml",
+    "tripod_scans.csv",
+    "calib_boresight_scans.toml",
+    "truth.json",
+];
+
 /// Writes one realisation as a lab would record it (`tripod_centres.csv`, `tripod_sites.csv`),
 /// the calibration config `calib_boresight.toml` that reads them, the raw returns of each
 /// site `tripod_scans.csv` (`site,beta_rad,range_m,intensity`, [`TripodScenario::simulate_scan`],
@@ -496,6 +507,10 @@ pub fn run_tripod_simulation(
     out_dir: &Path,
 ) -> Result<Option<MonteCarloSummary>> {
     let sc: TripodScenario = files::load_toml(config_path)?;
+    crate::io::paths::check_collisions(
+        &[("config file".into(), config_path.to_path_buf())],
+        &crate::io::paths::in_out_dir(out_dir, &OUTPUT_FILES),
+    )?;
     let mut rng = ChaCha8Rng::seed_from_u64(sc.seed);
     let sites = simulate_sites(&sc, &mut rng)?;
     write_tripod_run(&sc, &sites, out_dir)?;

@@ -69,10 +69,7 @@ pub fn run(a: &RunArgs, quiet: bool) -> Result<()> {
         ..RunOptions::default()
     };
     let report = executor::run(&loaded, &opts)?;
-    let report_path = loaded.config.output.report.clone().unwrap_or_else(|| {
-        let las = &loaded.config.output.las;
-        las.with_extension("report.json")
-    });
+    let report_path = loaded.config.output.report_path();
     report.write(&report_path)?;
     if !quiet {
         let t = &report.totals;
@@ -104,6 +101,10 @@ pub fn validate(a: &ValidateArgs) -> Result<()> {
 }
 
 pub fn import(a: &ImportArgs, quiet: bool) -> Result<()> {
+    kinescan::io::paths::check_collisions(
+        &[("CSV argument".into(), a.csv.clone())],
+        &[("OUTPUT argument".into(), a.output.clone())],
+    )?;
     let s = kinescan::io::profiles_csv::import_csv(&a.csv, &a.output)?;
     if !quiet {
         println!("{}", serde_json::to_string_pretty(&s)?);

@@ -6,6 +6,7 @@ pub mod info;
 pub mod las;
 pub mod mapped;
 pub mod patches;
+pub mod paths;
 pub mod points;
 pub mod profiles;
 pub mod profiles_csv;

@@ -362,6 +362,7 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
 
 fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<RunReport> {
     let c = &p.config;
+    super::files::check_collisions_of(p)?;
     let mut stages = Vec::new();
     let started = Instant::now();
     let traj_opts = TrajectoryOptions {
@@ -394,12 +395,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     });
 
     let sync_started = Instant::now();
-    let stem = c
-        .output
-        .las
-        .file_stem()
-        .unwrap_or_default()
-        .to_string_lossy();
+    let stem = c.output.stem();
     let sync = crate::sync::stage::run(c, &traj, &profile_files, &out_dir, &stem)?;
     if c.sync.is_some() {
         stages.push(StageTiming {
@@ -771,6 +767,7 @@ impl CounterTracker {
 /// model's needs and the map frame.
 pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     let c = &p.config;
+    super::files::check_collisions_of(p)?;
     let traj_opts = TrajectoryOptions {
         max_gap_s: c.trajectory.max_gap_s,
     };

@@ -8,5 +8,6 @@
 
 pub mod config;
 pub mod executor;
+pub mod files;
 pub mod report;
 pub mod sink;

@@ -2,6 +2,7 @@
 //! named predictably, each written atomically.
 
 use super::config::{PipelineConfig, SplitMode, UncertaintyConfig};
+use super::files::{numbered_part, per_input_part};
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
@@ -19,6 +20,7 @@ const WEEK_S: f64 = 604_800.0;
 pub struct SinkSettings {
     config: LasWriterConfig,
     las: PathBuf,
+    stem: String,
     split: SplitMode,
     max_points: u64,
 }
@@ -62,6 +64,7 @@ impl SinkSettings {
         Ok(SinkSettings {
             config,
             las: c.output.las.clone(),
+            stem: c.output.stem(),
             split: c.output.split,
             max_points: c.output.max_points_per_file.unwrap_or(u64::MAX),
         })
@@ -155,7 +158,7 @@ pub struct LasSink {
     current: Option<LasWriter>,
     in_current: u64,
     parts: u32,
-    input_stem: String,
+    input: PathBuf,
     done: Vec<LasSummary>,
 }
 
@@ -167,17 +170,14 @@ impl LasSink {
             current: None,
             in_current: 0,
             parts: 0,
-            input_stem: String::new(),
+            input: PathBuf::new(),
             done: Vec::new(),
         }
     }
 
     /// Called before each profile file's points: starts a new file when splitting per input.
     pub fn start_input(&mut self, profile_path: &Path) -> Result<()> {
-        self.input_stem = profile_path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_default();
+        self.input = profile_path.to_path_buf();
         if self.settings.split == SplitMode::PerInput {
             self.close()?;
             self.open()?;
@@ -187,16 +187,11 @@ impl LasSink {
 
     fn path_for_next(&self) -> PathBuf {
         let las = &self.settings.las;
-        let stem = las
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| "cloud".into());
-        let name = match self.settings.split {
-            SplitMode::None => return las.clone(),
-            SplitMode::PerInput => format!("{stem}_{}.las", self.input_stem),
-            SplitMode::MaxPoints => format!("{stem}_{:04}.las", self.parts + 1),
-        };
-        las.with_file_name(name)
+        match self.settings.split {
+            SplitMode::None => las.clone(),
+            SplitMode::PerInput => per_input_part(las, &self.settings.stem, &self.input),
+            SplitMode::MaxPoints => numbered_part(las, &self.settings.stem, self.parts + 1),
+        }
     }
 
     fn open(&mut self) -> Result<()> {

@@ -87,11 +87,27 @@ pub mod files {
     pub const PATCHES: &str = "patches.csv";
     /// Every true parameter and injected effect.
     pub const TRUTH_JSON: &str = "truth.json";
+    /// Every file a simulation may write.
+    pub const ALL: [&str; 9] = [
+        SBET,
+        SMRMSG,
+        TRUTH_SBET,
+        PROFILES,
+        PROFILES_CSV,
+        TRUTH_POINTS,
+        CONTROL_POINTS,
+        PATCHES,
+        TRUTH_JSON,
+    ];
 }
 
 /// Simulates the survey described by `scenario_path` into `out_dir` (created if missing).
 pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
     let mut sc = Scenario::load(scenario_path)?;
+    crate::io::paths::check_collisions(
+        &[("scenario file".into(), scenario_path.to_path_buf())],
+        &crate::io::paths::in_out_dir(out_dir, &files::ALL),
+    )?;
     if let Some(d) = opts.duration_s {
         sc.duration_s = d;
         let text = toml::to_string(&sc).map_err(|e| Error::Invalid(e.to_string()))?;

@@ -360,7 +360,23 @@ fn validate_scenario(s: &ScenarioPointsConfig) -> std::result::Result<(), (&'sta
 /// point, factor and output), `share_vs_range.csv` (plot data: first-order, total and linear
 /// share of each factor against range), `sensitivity.json` (the [`SensitivityReport`]).
 pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<SensitivityReport> {
-    run_sensitivity_config(load_sensitivity(config_path)?, out_dir)
+    let config = load_sensitivity(config_path)?;
+    let mut inputs = vec![("config file".to_string(), config_path.to_path_buf())];
+    if let Some(sc) = &config.scenario {
+        inputs.push(("scenario.file".into(), sc.file.clone()));
+    }
+    let mut names = vec![
+        "sensitivity_points.csv".to_string(),
+        "share_vs_range.csv".into(),
+        "sensitivity.json".into(),
+    ];
+    for o in OUTPUTS {
+        names.push(format!("share_vs_range_{o}.png"));
+        names.push(format!("share_vs_range_inputs_{o}.png"));
+    }
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(out_dir, &names))?;
+    run_sensitivity_config(config, out_dir)
 }
 
 /// [`run_sensitivity`] for a study already loaded with [`load_sensitivity`] (and possibly

@@ -22,6 +22,7 @@ mod pipeline_roundtrip;
 mod pipelines;
 mod realdata;
 mod realdata_leeward;
+mod safety_collisions;
 mod sim_effects;
 mod sim_references;
 mod sim_stats;
