@@ -6,6 +6,7 @@
 //! Conventions (frames, signs, time model) follow `../shared/SPEC.md`, restated in `docs/`.
 #![forbid(unsafe_op_in_unsafe_fn)]
 
+pub mod app;
 pub mod calib;
 pub mod demo;
 pub mod error;

@@ -491,7 +491,7 @@ pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
 }
 
 /// Maps binary profile files; CSV files are first imported into `staging`.
-fn open_profiles(paths: &[PathBuf], staging: &Path) -> Result<Vec<(PathBuf, ProfileFile)>> {
+pub fn open_profiles(paths: &[PathBuf], staging: &Path) -> Result<Vec<(PathBuf, ProfileFile)>> {
     paths
         .iter()
         .enumerate()

@@ -1,0 +1,5 @@
+//! `kinescan diagnose`: where a survey departs from its model, which catalogue effect causes
+//! it, and how far the gap shrinks once that effect is added (docs/diagnosis.md).
+
+pub mod model;
+pub mod observe;

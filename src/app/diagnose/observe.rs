@@ -1,0 +1,720 @@
+//! Observations: every return of a survey that falls on a reference planar patch (inside its
+//! rectangle, near its plane) becomes one [`Observation`] with its residual from the plane, its
+//! predicted variance parts and the signatures of the catalogue effects (docs/diagnosis.md).
+//!
+//! Two passes over the returns: the first georeferences every return with the configured
+//! values (in parallel) and keeps those on a patch; the second groups them into visits
+//! (time-contiguous runs over one patch in one pass), thins long visits evenly in time and
+//! computes each kept return's terms from the analytic Jacobian of the uncertainty model
+//! (`crate::uncertainty::PointGeometry::jacobian_e`). Every return read is counted in exactly
+//! one class of [`ObserveCounts`].
+
+use super::model::{Covariates, Effect, Observation, ObservationSet, Side, Visit};
+use crate::geo::ellipsoid::r_n_to_e;
+use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
+use crate::georef::{ReturnTerms, Sensor};
+use crate::io::patches::PlanarPatch;
+use crate::io::profiles::{ProfileFile, RawReturn};
+use crate::pipeline::config::{LoadedPipeline, TimeModel};
+use crate::pipeline::executor::open_profiles;
+use crate::pipeline::report::RejectReason;
+use crate::timing::ScannerClock;
+use crate::trajectory::{PoseCursor, Trajectory, TrajectoryOptions};
+use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
+use crate::{Error, Result};
+use nalgebra::{Matrix3, Vector3};
+use rayon::prelude::*;
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+/// How returns become observations (the `[diagnose]` table gives them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ObserveOptions {
+    /// A return further than this from its patch plane is not an observation (m).
+    pub plane_tolerance_m: f64,
+    /// Returns closer than this to a patch edge are left out (m).
+    pub edge_margin_m: f64,
+    /// A gap longer than this between two returns on one patch starts a new visit (s).
+    pub visit_gap_s: f64,
+    /// A visit longer than this is split (s): a visit shares one navigation error, which
+    /// stays constant only over a fraction of its correlation time.
+    pub max_visit_s: f64,
+    /// Visits with fewer returns are left out.
+    pub min_per_visit: usize,
+    /// At most this many returns of a visit are kept, evenly spaced in time (deterministic).
+    pub max_per_visit: usize,
+}
+
+impl Default for ObserveOptions {
+    fn default() -> Self {
+        ObserveOptions {
+            plane_tolerance_m: 0.15,
+            edge_margin_m: 0.1,
+            visit_gap_s: 1.0,
+            max_visit_s: 5.0,
+            min_per_visit: 20,
+            max_per_visit: 400,
+        }
+    }
+}
+
+/// Returns beyond [`ObserveOptions::plane_tolerance_m`] but within this distance (m) of a
+/// patch plane, inside its rectangle, are counted as `off_plane` (clutter in front of or behind
+/// the patch); further ones as `off_patches`.
+const NEAR_PLANE_M: f64 = 1.0;
+/// Cell size (m) of the ECEF grid that finds the patches near a point.
+const GRID_CELL_M: f64 = 8.0;
+/// Returns per parallel work item of the first pass.
+const CHUNK_RETURNS: usize = 1 << 15;
+
+/// What happened to every return read: `returns_read` = sum of `rejected` + `off_patches` +
+/// `off_plane` + `on_patches`; `on_patches` = `in_short_visits` + `thinned` + `observations`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ObserveCounts {
+    /// Returns read from every profile file.
+    pub returns_read: u64,
+    /// Returns that cannot be georeferenced, by reason (as in `kinescan run`).
+    pub rejected: BTreeMap<RejectReason, u64>,
+    /// Georeferenced, not inside any patch rectangle (less its edge margin) near its plane.
+    pub off_patches: u64,
+    /// Inside a patch rectangle but beyond the plane tolerance (within 1 m of the plane).
+    pub off_plane: u64,
+    /// On a patch (inside its rectangle, within the plane tolerance).
+    pub on_patches: u64,
+    /// On a patch, in a visit with fewer than `min_per_visit` returns: left out.
+    pub in_short_visits: u64,
+    /// On a patch, left out by the even thinning of long visits.
+    pub thinned: u64,
+    /// Kept as observations.
+    pub observations: u64,
+    /// Patches read from the patch file.
+    pub patches_read: usize,
+    /// Patch ids without any observation.
+    pub patches_without_observations: Vec<String>,
+}
+
+/// The observations of a survey and the account of every return.
+#[derive(Debug, Clone)]
+pub struct Observed {
+    /// The observations.
+    pub set: ObservationSet,
+    /// What happened to every return.
+    pub counts: ObserveCounts,
+}
+
+/// Checks that a pipeline can be diagnosed: per-point uncertainty needs `[uncertainty]` and
+/// the SMRMSG file; errors name the pipeline file and the missing key.
+pub fn check_pipeline(p: &LoadedPipeline) -> Result<()> {
+    let source = p.path.display().to_string();
+    if p.config.inputs.smrmsg.is_none() {
+        let problem = "diagnosis needs the SMRMSG file (INS position and attitude sigmas): \
+                       the navigation errors are part of the model every residual is tested \
+                       against";
+        return Err(Error::config(&source, "inputs.smrmsg", problem));
+    }
+    if p.config.uncertainty.is_none() {
+        let problem = "diagnosis needs the [uncertainty] table (scanner noise sigmas): \
+                       without predicted sigmas no gap can be measured";
+        return Err(Error::config(&source, "uncertainty", problem));
+    }
+    Ok(())
+}
+
+/// Observes every return of pipeline `p` that falls on one of `patches` (read from
+/// `patches_path`, named in errors).
+pub fn observe(
+    p: &LoadedPipeline,
+    patches: &[PlanarPatch],
+    patches_path: &Path,
+    opts: &ObserveOptions,
+) -> Result<Observed> {
+    check_pipeline(p)?;
+    let c = &p.config;
+    let traj_opts = TrajectoryOptions {
+        max_gap_s: c.trajectory.max_gap_s,
+    };
+    let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
+    let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
+    let files = open_profiles(&c.inputs.profiles, staging.path())?;
+    let index = PatchIndex::new(patches, opts);
+    let mut counts = ObserveCounts {
+        patches_read: patches.len(),
+        ..Default::default()
+    };
+    let mut hits = Vec::new();
+    for (pass, (_, file)) in files.iter().enumerate() {
+        let model = ReturnModel::new(p, &traj, file)?;
+        let on = first_pass(&model, file, &index, &mut counts);
+        hits.extend(on.into_iter().map(|h| (pass, h)));
+    }
+    if hits.is_empty() {
+        let problem = format!(
+            "no return of the survey falls on any of its {} patches (inside the rectangle less \
+             {} m, within {} m of the plane): the patches are not where the survey scanned, \
+             or in another datum",
+            patches.len(),
+            opts.edge_margin_m,
+            opts.plane_tolerance_m
+        );
+        return Err(Error::bad_file(patches_path, problem));
+    }
+    let visits = group_visits(hits, opts, &mut counts);
+    let set = second_pass(p, &traj, &files, patches, &index, visits, &mut counts)?;
+    counts.patches_without_observations = patches
+        .iter()
+        .filter(|pt| !set.reference_ids.contains(&pt.id))
+        .map(|pt| pt.id.clone())
+        .collect();
+    Ok(Observed { set, counts })
+}
+
+/// One return on a patch, from the first pass.
+#[derive(Debug, Clone, Copy)]
+struct Hit {
+    index: usize,
+    patch: usize,
+    t_s: f64,
+}
+
+/// A visit before its observations are computed: patch, pass and the kept returns.
+struct PendingVisit {
+    patch: usize,
+    pass: usize,
+    hits: Vec<Hit>,
+}
+
+/// The configured georeferencing of one profile file's returns (docs/conventions.md §2, §4).
+struct ReturnModel<'a> {
+    traj: &'a Trajectory,
+    sensor: Sensor,
+    clock: ScannerClock,
+    model: TimeModel,
+    alpha_column: bool,
+    attitude_latency_s: f64,
+    position_latency_s: f64,
+    range_limits_m: (f64, f64),
+    white: WhiteSigmas,
+}
+
+/// The scanner noise sigmas (`[uncertainty]`) that make the white part of a residual's
+/// variance: alpha and beta (rad), range (m).
+struct WhiteSigmas {
+    alpha_rad: f64,
+    beta_rad: f64,
+    range_m: f64,
+}
+
+/// A georeferenced return.
+struct Located {
+    t_s: f64,
+    /// Partials of `t` with respect to (t0, T).
+    dt_dclock: [f64; 2],
+    alpha_rad: f64,
+    pose: crate::trajectory::Pose,
+    terms: ReturnTerms,
+    x_e: Vector3<f64>,
+}
+
+impl<'a> ReturnModel<'a> {
+    fn new(p: &LoadedPipeline, traj: &'a Trajectory, file: &ProfileFile) -> Result<Self> {
+        let c = &p.config;
+        let alpha_column = file.columns().alpha;
+        if c.time.model != TimeModel::Software && !file.columns().time {
+            let msg = format!(
+                "time.model = {:?} needs a time_s column, which this file lacks",
+                c.time.model
+            );
+            return Err(Error::bad_file(file.path(), msg));
+        }
+        Ok(ReturnModel {
+            traj,
+            sensor: c.sensor.sensor(),
+            clock: ScannerClock {
+                t0_s: c.time.t0_s.unwrap_or(0.0),
+                period_s: c.time.period_s,
+                mirror: c.time.mirror(),
+            },
+            model: c.time.model,
+            alpha_column,
+            attitude_latency_s: c.latency.attitude_s,
+            position_latency_s: c.latency.position_s,
+            range_limits_m: (c.sensor.min_range_m, c.sensor.max_range_m),
+            white: c.uncertainty.as_ref().map_or(
+                WhiteSigmas {
+                    alpha_rad: 0.0,
+                    beta_rad: 0.0,
+                    range_m: 0.0,
+                },
+                |u| WhiteSigmas {
+                    alpha_rad: u.sigma_alpha_deg.to_radians(),
+                    beta_rad: u.sigma_beta_deg.to_radians(),
+                    range_m: u.sigma_range_m,
+                },
+            ),
+        })
+    }
+
+    fn cursor(&self) -> PoseCursor<'a> {
+        PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s)
+    }
+
+    /// Time (s) of a return and its partials with respect to (t0, T) per the time model.
+    fn time_of(&self, r: &RawReturn) -> (f64, [f64; 2]) {
+        match self.model {
+            TimeModel::Software => {
+                let (t, (a, b)) = self.clock.time_and_partials(r.profile, r.beta_rad);
+                (t, [a, b])
+            }
+            TimeModel::HardwareProfile => {
+                let (t, f) = self
+                    .clock
+                    .time_from_profile_tag_and_partial(r.time_s, r.beta_rad);
+                (t, [0.0, f])
+            }
+            TimeModel::HardwareReturn => (r.time_s, [0.0, 0.0]),
+        }
+    }
+
+    /// d t / d beta (s/rad): the mirror fraction moves with the encoder angle.
+    fn dt_dbeta(&self) -> f64 {
+        match self.model {
+            TimeModel::HardwareReturn => 0.0,
+            _ => self.clock.period_s * self.clock.mirror.direction.sign() / std::f64::consts::TAU,
+        }
+    }
+
+    /// Georeferences `r` with the configured values, or says why it cannot be.
+    fn locate(&self, r: &RawReturn, cursor: &mut PoseCursor) -> Result<Located, RejectReason> {
+        let alpha_rad = if self.alpha_column {
+            r.alpha_rad
+        } else {
+            self.sensor.alpha0_rad
+        };
+        let finite = r.beta_rad.is_finite() && r.range_m.is_finite() && alpha_rad.is_finite();
+        if !finite || (self.model != TimeModel::Software && !r.time_s.is_finite()) {
+            return Err(RejectReason::NonFinite);
+        }
+        if r.range_m == 0.0 {
+            return Err(RejectReason::MissingReturn);
+        }
+        let (lo, hi) = self.range_limits_m;
+        if !(lo..=hi).contains(&r.range_m) {
+            return Err(RejectReason::RangeOutOfLimits);
+        }
+        let (t_s, dt_dclock) = self.time_of(r);
+        let pose = cursor.at(t_s).map_err(RejectReason::from)?;
+        let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, alpha_rad, r.beta_rad);
+        let x_e = terms.point_e(&pose.nav.r_e_m);
+        Ok(Located {
+            t_s,
+            dt_dclock,
+            alpha_rad,
+            pose,
+            terms,
+            x_e,
+        })
+    }
+}
+
+/// A patch in ECEF: centre, rows (length axis, height axis, normal), shrunk half sizes.
+struct PatchFrame {
+    centre_e: Vector3<f64>,
+    axes_e: Matrix3<f64>,
+    half_m: (f64, f64),
+    /// Normal in NED at the patch centre (for the survey sigma in the visit covariance).
+    normal_n: Vector3<f64>,
+    sigma_m: f64,
+}
+
+/// Where a point lies relative to the patches.
+enum Place {
+    Off,
+    OffPlane,
+    On(usize),
+}
+
+/// The patches on an ECEF grid: a point is tested only against the patches of its cell.
+struct PatchIndex {
+    frames: Vec<PatchFrame>,
+    cells: HashMap<[i64; 3], Vec<usize>>,
+    tolerance_m: f64,
+}
+
+impl PatchIndex {
+    fn new(patches: &[PlanarPatch], opts: &ObserveOptions) -> Self {
+        let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
+        let frames: Vec<PatchFrame> = patches
+            .iter()
+            .map(|p| {
+                let r_enu_e = crate::geo::ellipsoid::r_enu_to_e(p.lat_rad, p.lon_rad);
+                let (l, h) = p.axes_enu();
+                let n = p.normal_enu();
+                let axes_e = Matrix3::from_rows(&[
+                    (r_enu_e * l).transpose(),
+                    (r_enu_e * h).transpose(),
+                    (r_enu_e * n).transpose(),
+                ]);
+                let n_e = r_enu_e * n;
+                PatchFrame {
+                    centre_e: p.centre_ecef(),
+                    axes_e,
+                    half_m: (
+                        p.half_length_m - opts.edge_margin_m,
+                        p.half_height_m - opts.edge_margin_m,
+                    ),
+                    normal_n: r_n_to_e(p.lat_rad, p.lon_rad).transpose() * n_e,
+                    sigma_m: p.sigma_m.unwrap_or(0.0),
+                }
+            })
+            .collect();
+        for (k, f) in frames.iter().enumerate() {
+            let (hl, hh) = (f.half_m.0.max(0.0), f.half_m.1.max(0.0));
+            let extent = Vector3::new(hl, hh, NEAR_PLANE_M);
+            // Bounding box of the patch box in ECEF: |R^T| * extent about the centre.
+            let half_box = f.axes_e.transpose().abs() * extent;
+            let lo = cell_of(&(f.centre_e - half_box));
+            let hi = cell_of(&(f.centre_e + half_box));
+            for i in lo[0]..=hi[0] {
+                for j in lo[1]..=hi[1] {
+                    for m in lo[2]..=hi[2] {
+                        cells.entry([i, j, m]).or_default().push(k);
+                    }
+                }
+            }
+        }
+        PatchIndex {
+            frames,
+            cells,
+            tolerance_m: opts.plane_tolerance_m,
+        }
+    }
+
+    /// The patch a point lies on (nearest plane when rectangles overlap).
+    fn place(&self, x_e: &Vector3<f64>) -> Place {
+        let Some(list) = self.cells.get(&cell_of(x_e)) else {
+            return Place::Off;
+        };
+        let mut best: Option<(usize, f64)> = None;
+        let mut near = false;
+        for &k in list {
+            let f = &self.frames[k];
+            let c = f.axes_e * (x_e - f.centre_e);
+            if c.x.abs() > f.half_m.0 || c.y.abs() > f.half_m.1 || c.z.abs() > NEAR_PLANE_M {
+                continue;
+            }
+            near = true;
+            if c.z.abs() <= self.tolerance_m && best.is_none_or(|(_, d)| c.z.abs() < d) {
+                best = Some((k, c.z.abs()));
+            }
+        }
+        match (best, near) {
+            (Some((k, _)), _) => Place::On(k),
+            (None, true) => Place::OffPlane,
+            (None, false) => Place::Off,
+        }
+    }
+}
+
+fn cell_of(x: &Vector3<f64>) -> [i64; 3] {
+    [0, 1, 2].map(|i| (x[i] / GRID_CELL_M).floor() as i64)
+}
+
+/// Per-chunk tallies of the first pass.
+#[derive(Default)]
+struct ChunkTally {
+    rejected: BTreeMap<RejectReason, u64>,
+    off_patches: u64,
+    off_plane: u64,
+    hits: Vec<Hit>,
+}
+
+/// Georeferences every return of one file and keeps those on a patch (in file order).
+fn first_pass(
+    model: &ReturnModel,
+    file: &ProfileFile,
+    index: &PatchIndex,
+    counts: &mut ObserveCounts,
+) -> Vec<Hit> {
+    let n = file.len();
+    let tallies: Vec<ChunkTally> = (0..n.div_ceil(CHUNK_RETURNS))
+        .into_par_iter()
+        .map(|k| {
+            let mut tally = ChunkTally::default();
+            let mut cursor = model.cursor();
+            for i in k * CHUNK_RETURNS..((k + 1) * CHUNK_RETURNS).min(n) {
+                match model.locate(&file.get(i), &mut cursor) {
+                    Err(reason) => *tally.rejected.entry(reason).or_default() += 1,
+                    Ok(loc) => match index.place(&loc.x_e) {
+                        Place::Off => tally.off_patches += 1,
+                        Place::OffPlane => tally.off_plane += 1,
+                        Place::On(patch) => tally.hits.push(Hit {
+                            index: i,
+                            patch,
+                            t_s: loc.t_s,
+                        }),
+                    },
+                }
+            }
+            tally
+        })
+        .collect();
+    counts.returns_read += n as u64;
+    let mut hits = Vec::new();
+    for t in tallies {
+        for (reason, k) in t.rejected {
+            *counts.rejected.entry(reason).or_default() += k;
+        }
+        counts.off_patches += t.off_patches;
+        counts.off_plane += t.off_plane;
+        counts.on_patches += t.hits.len() as u64;
+        hits.extend(t.hits);
+    }
+    hits
+}
+
+/// Splits the hits of one pass into visits, drops short ones and thins long ones; `hits` are
+/// tagged with their pass.
+fn group_visits(
+    hits: Vec<(usize, Hit)>,
+    opts: &ObserveOptions,
+    counts: &mut ObserveCounts,
+) -> Vec<PendingVisit> {
+    let mut by_patch: BTreeMap<(usize, usize), Vec<Hit>> = BTreeMap::new();
+    for (pass, h) in hits {
+        by_patch.entry((h.patch, pass)).or_default().push(h);
+    }
+    let mut visits = Vec::new();
+    for ((patch, pass), mut list) in by_patch {
+        list.sort_by(|a, b| a.t_s.total_cmp(&b.t_s).then(a.index.cmp(&b.index)));
+        let mut start = 0;
+        for k in 1..=list.len() {
+            let split = k == list.len()
+                || list[k].t_s - list[k - 1].t_s > opts.visit_gap_s
+                || list[k].t_s - list[start].t_s > opts.max_visit_s;
+            if !split {
+                continue;
+            }
+            let run = &list[start..k];
+            start = k;
+            if run.len() < opts.min_per_visit {
+                counts.in_short_visits += run.len() as u64;
+                continue;
+            }
+            let kept = thin_evenly(run, opts.max_per_visit);
+            counts.thinned += (run.len() - kept.len()) as u64;
+            visits.push(PendingVisit {
+                patch,
+                pass,
+                hits: kept,
+            });
+        }
+    }
+    visits
+}
+
+/// At most `max` of `run`, evenly spaced by position (first one kept).
+fn thin_evenly(run: &[Hit], max: usize) -> Vec<Hit> {
+    if run.len() <= max {
+        return run.to_vec();
+    }
+    (0..max).map(|k| run[k * run.len() / max]).collect()
+}
+
+/// Computes the observations and visit covariances of the kept returns.
+fn second_pass(
+    p: &LoadedPipeline,
+    traj: &Trajectory,
+    files: &[(std::path::PathBuf, ProfileFile)],
+    patches: &[PlanarPatch],
+    index: &PatchIndex,
+    visits: Vec<PendingVisit>,
+    counts: &mut ObserveCounts,
+) -> Result<ObservationSet> {
+    let models = files
+        .iter()
+        .map(|(_, f)| ReturnModel::new(p, traj, f))
+        .collect::<Result<Vec<_>>>()?;
+    // Reference indices: patches with at least one visit, in patch-file order.
+    let mut reference_of = vec![None; patches.len()];
+    let mut reference_ids = Vec::new();
+    let mut used: Vec<usize> = visits.iter().map(|v| v.patch).collect();
+    used.sort_unstable();
+    used.dedup();
+    for k in used {
+        reference_of[k] = Some(reference_ids.len());
+        reference_ids.push(patches[k].id.clone());
+    }
+    let per_visit: Vec<Result<(Visit, Vec<Observation>)>> = visits
+        .par_iter()
+        .enumerate()
+        .map(|(v, pv)| {
+            let reference = reference_of[pv.patch].expect("listed above");
+            observe_visit(&models[pv.pass], &files[pv.pass].1, index, pv, v, reference)
+        })
+        .collect();
+    let mut set = ObservationSet {
+        reference_ids,
+        passes: files.len(),
+        ..Default::default()
+    };
+    for r in per_visit {
+        let (visit, obs) = r?;
+        set.visits.push(visit);
+        set.observations.extend(obs);
+    }
+    counts.observations = set.observations.len() as u64;
+    Ok(set)
+}
+
+/// The observations of one visit and its navigation covariance.
+fn observe_visit(
+    model: &ReturnModel,
+    file: &ProfileFile,
+    index: &PatchIndex,
+    pv: &PendingVisit,
+    visit: usize,
+    reference: usize,
+) -> Result<(Visit, Vec<Observation>)> {
+    let frame = &index.frames[pv.patch];
+    let mut cursor = model.cursor();
+    let mut obs = Vec::with_capacity(pv.hits.len());
+    for h in &pv.hits {
+        let r = file.get(h.index);
+        let loc = model.locate(&r, &mut cursor).map_err(|reason| {
+            Error::bad_record(
+                file.path(),
+                format!("record {}", h.index),
+                reason.describe(),
+            )
+        })?;
+        let cov = Covariates {
+            reference_id: reference,
+            pass: pv.pass,
+            ..covariates(&loc, model, frame, &r)
+        };
+        obs.push(observation(&loc, model, frame, &r, (reference, visit), cov));
+    }
+    let (t_first, t_last) = (pv.hits[0].t_s, pv.hits[pv.hits.len() - 1].t_s);
+    let nav_cov = visit_nav_cov(model.traj, 0.5 * (t_first + t_last), frame)
+        .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
+    let v = Visit {
+        reference,
+        pass: pv.pass,
+        nav_cov,
+    };
+    Ok((v, obs))
+}
+
+/// `P_v`: SMRMSG variances at `t_mid` plus the patch's survey variance along its normal
+/// (a plane offset along `n` is indistinguishable from an INS position error along `n`).
+fn visit_nav_cov(
+    traj: &Trajectory,
+    t_mid: f64,
+    frame: &PatchFrame,
+) -> Result<[[f64; 6]; 6], RejectReason> {
+    let mut cursor = traj.sigma_cursor().ok_or(RejectReason::OutsideAccuracy)?;
+    let s = cursor.at(t_mid).map_err(RejectReason::from)?;
+    let mut p = [[0.0; 6]; 6];
+    for k in 0..3 {
+        p[k][k] = s.pos_ned_m[k].powi(2);
+        p[k + 3][k + 3] = s.att_rph_rad[k].powi(2);
+    }
+    let s2 = frame.sigma_m.powi(2);
+    for i in 0..3 {
+        for j in 0..3 {
+            p[i][j] += s2 * frame.normal_n[i] * frame.normal_n[j];
+        }
+    }
+    Ok(p)
+}
+
+/// Where and how a return was measured (`reference_id` and `pass` are set by the caller).
+fn covariates(loc: &Located, model: &ReturnModel, frame: &PatchFrame, r: &RawReturn) -> Covariates {
+    let beam_b = model.sensor.r_s_to_b * loc.terms.u_s();
+    let beam_e = loc.terms.r_n_to_e * (loc.terms.r_b_to_n * beam_b);
+    let n_e = frame.axes_e.row(2).transpose();
+    let w = loc.pose.omega_b_radps.map(f64::to_degrees);
+    let (_, _, heading) = roll_pitch_heading(&loc.pose.q_b_to_n);
+    Covariates {
+        time_s: loc.t_s,
+        range_m: r.range_m,
+        beta_deg: wrap_pi(r.beta_rad).to_degrees(),
+        incidence_deg: n_e.dot(&beam_e).abs().min(1.0).acos().to_degrees(),
+        speed_mps: loc.pose.nav.v_n_mps.norm(),
+        yaw_rate_dps: w.z,
+        roll_rate_dps: w.x,
+        pitch_rate_dps: w.y,
+        heading_deg: heading.to_degrees().rem_euclid(360.0),
+        side: if beam_b.y < 0.0 {
+            Side::Left
+        } else {
+            Side::Right
+        },
+        pass: 0,
+        reference_id: 0,
+    }
+}
+
+/// The observation of one located return: residual, white variance, navigation gradient and
+/// effect signatures, all from `n^T J` with `J` the analytic Jacobian of the uncertainty model.
+fn observation(
+    loc: &Located,
+    model: &ReturnModel,
+    frame: &PatchFrame,
+    r: &RawReturn,
+    ids: (usize, usize),
+    covariates: Covariates,
+) -> Observation {
+    let geom = PointGeometry::from_pose(
+        &loc.pose,
+        &model.sensor,
+        loc.alpha_rad,
+        r.beta_rad,
+        r.range_m,
+    );
+    let j = geom.jacobian_e();
+    let n_e = frame.axes_e.row(2).transpose();
+    let g: [f64; N_INPUTS] = std::array::from_fn(|k| n_e.dot(&j.column(k)));
+    let w = &model.white;
+    let var_white_m2 = (g[Input::Alpha as usize] * w.alpha_rad).powi(2)
+        + (g[Input::Beta as usize] * w.beta_rad).powi(2)
+        + (g[Input::Range as usize] * w.range_m).powi(2);
+    Observation {
+        reference: ids.0,
+        visit: ids.1,
+        residual_m: n_e.dot(&(loc.x_e - frame.centre_e)),
+        var_white_m2,
+        nav_gradient: std::array::from_fn(|k| g[k]),
+        signature: Effect::ALL.map(|e| signature(e, &g, loc, model)),
+        covariates,
+    }
+}
+
+/// How far a return moves along `n` (m) per unit of effect `e` present in the data but not in
+/// the configuration: `-n^T d x_e / d p` with `p` the configured value the effect corrects
+/// (georeferencing with `p` too small by `delta` puts the point at `x(p_true) - J delta`).
+/// `g` = `n^T J` over the uncertainty model's inputs.
+fn signature(e: Effect, g: &[f64; N_INPUTS], loc: &Located, model: &ReturnModel) -> f64 {
+    use Input as I;
+    let deg = std::f64::consts::PI / 180.0;
+    let d_time = g[I::ClockTime as usize];
+    let d_pos_along_v = (0..3).map(|k| g[k] * loc.pose.nav.v_n_mps[k]).sum::<f64>();
+    let d_p = match e {
+        Effect::AttitudeLatency => g[I::Latency as usize],
+        Effect::PositionLatency => d_pos_along_v,
+        Effect::ClockOffset => d_time * loc.dt_dclock[0],
+        Effect::ClockDrift => d_time * loc.dt_dclock[1] * model.clock.period_s * 1e-6,
+        Effect::BoresightX => g[I::BoresightX as usize] * deg,
+        Effect::BoresightY => g[I::BoresightY as usize] * deg,
+        Effect::BoresightZ => g[I::BoresightZ as usize] * deg,
+        Effect::LeverArmX => g[I::LeverX as usize],
+        Effect::LeverArmY => g[I::LeverY as usize],
+        Effect::LeverArmZ => g[I::LeverZ as usize],
+        Effect::RangeZero => g[I::RangeZero as usize],
+        Effect::RangeScale => g[I::Range as usize] * loc.terms.range_total_m * 1e-6,
+        Effect::EncoderOffset => (g[I::Beta as usize] + d_time * model.dt_dbeta()) * deg,
+        Effect::Cone => g[I::Alpha as usize] * deg,
+        Effect::HeadingOffset => g[I::InsHeading as usize] * deg,
+    };
+    -d_p
+}
