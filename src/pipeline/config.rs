@@ -37,6 +37,77 @@ pub struct PipelineConfig {
     /// Object-space time synchronisation (optional; runs before georeferencing).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sync: Option<SyncConfig>,
+    /// `kinescan diagnose` options (optional; command-line options win).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnose: Option<DiagnoseConfig>,
+}
+
+/// `[diagnose]`: what `kinescan diagnose` reads and how it turns returns on reference patches
+/// into observations (docs/diagnosis.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiagnoseConfig {
+    /// Reference planar patches (patch CSV).
+    #[serde(default)]
+    pub patches: Option<PathBuf>,
+    /// Output folder of the diagnosis.
+    #[serde(default)]
+    pub out: Option<PathBuf>,
+    /// A return further than this from its patch plane is not an observation (m).
+    #[serde(default = "default_plane_tolerance_m")]
+    pub plane_tolerance_m: f64,
+    /// Returns closer than this to a patch edge are left out (m).
+    #[serde(default = "default_edge_margin_m")]
+    pub edge_margin_m: f64,
+    /// A gap longer than this between two returns on one patch starts a new visit (s).
+    #[serde(default = "default_visit_gap_s")]
+    pub visit_gap_s: f64,
+    /// A visit longer than this is split (s): one visit shares one navigation error.
+    #[serde(default = "default_max_visit_s")]
+    pub max_visit_s: f64,
+    /// Visits with fewer returns are left out.
+    #[serde(default = "default_min_per_visit")]
+    pub min_per_visit: usize,
+    /// At most this many returns of a visit are kept, evenly spaced in time.
+    #[serde(default = "default_max_per_visit")]
+    pub max_per_visit: usize,
+    /// Seed of the split of the references into fit and held-out halves.
+    #[serde(default = "default_diagnose_seed")]
+    pub seed: u64,
+    /// Family-wise significance level of the effect tests (Holm).
+    #[serde(default = "default_diagnose_alpha")]
+    pub alpha: f64,
+}
+
+impl Default for DiagnoseConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("every key has a default")
+    }
+}
+
+fn default_plane_tolerance_m() -> f64 {
+    0.15
+}
+fn default_edge_margin_m() -> f64 {
+    0.1
+}
+fn default_visit_gap_s() -> f64 {
+    1.0
+}
+fn default_max_visit_s() -> f64 {
+    5.0
+}
+fn default_min_per_visit() -> usize {
+    20
+}
+fn default_max_per_visit() -> usize {
+    400
+}
+fn default_diagnose_seed() -> u64 {
+    1
+}
+fn default_diagnose_alpha() -> f64 {
+    0.01
 }
 
 /// `[sync]`: estimate t0 and T (and optionally the attitude latency) from surveyed sync
@@ -566,6 +637,9 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
     if let Some(sy) = &c.sync {
         validate_sync(sy, t, source)?;
     }
+    if let Some(d) = &c.diagnose {
+        validate_diagnose(d, source)?;
+    }
     if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) && c.sync.is_none() {
         return bad(
             "time.t0_s",
@@ -656,6 +730,36 @@ fn validate_sync(sy: &SyncConfig, t: &TimeConfig, source: &str) -> Result<()> {
     Ok(())
 }
 
+fn validate_diagnose(d: &DiagnoseConfig, source: &str) -> Result<()> {
+    let bad = |key: &str, problem: String| Err(Error::config(source, key, problem));
+    let positive = [
+        ("diagnose.plane_tolerance_m", d.plane_tolerance_m),
+        ("diagnose.visit_gap_s", d.visit_gap_s),
+        ("diagnose.max_visit_s", d.max_visit_s),
+    ];
+    for (key, v) in positive {
+        if !(v.is_finite() && v > 0.0) {
+            return bad(key, format!("must be a finite number > 0, got {v}"));
+        }
+    }
+    if !(d.edge_margin_m.is_finite() && d.edge_margin_m >= 0.0) {
+        let v = d.edge_margin_m;
+        return bad("diagnose.edge_margin_m", format!("must be >= 0, got {v}"));
+    }
+    if d.min_per_visit < 2 || d.max_per_visit < d.min_per_visit {
+        let problem = format!(
+            "need 2 <= min_per_visit <= max_per_visit, got {} and {}",
+            d.min_per_visit, d.max_per_visit
+        );
+        return bad("diagnose.max_per_visit", problem);
+    }
+    if !(d.alpha > 0.0 && d.alpha < 0.5) {
+        let v = d.alpha;
+        return bad("diagnose.alpha", format!("must be in (0, 0.5), got {v}"));
+    }
+    Ok(())
+}
+
 fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
     let fix = |p: &mut PathBuf| {
         if p.is_relative() {
@@ -670,6 +774,9 @@ fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
     fix(&mut c.output.las);
     if let Some(p) = c.output.report.as_mut() {
         fix(p);
+    }
+    if let Some(d) = c.diagnose.as_mut() {
+        d.patches.iter_mut().chain(d.out.iter_mut()).for_each(fix);
     }
     if let Some(sy) = c.sync.as_mut() {
         fix(&mut sy.points);

@@ -11,6 +11,7 @@ mod calib_latency;
 mod calib_sphere;
 mod calib_tripod_scans;
 mod cli;
+mod diagnose;
 mod frames;
 mod geodesy;
 mod geodesy_local;

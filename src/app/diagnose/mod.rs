@@ -3,3 +3,6 @@
 
 pub mod model;
 pub mod observe;
+pub mod plots;
+pub mod report;
+pub mod reprocess;

@@ -15,7 +15,7 @@ use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::PlanarPatch;
 use crate::io::profiles::{ProfileFile, RawReturn};
-use crate::pipeline::config::{LoadedPipeline, TimeModel};
+use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
 use crate::pipeline::executor::open_profiles;
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
@@ -27,38 +27,7 @@ use rayon::prelude::*;
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-/// How returns become observations (the `[diagnose]` table gives them).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ObserveOptions {
-    /// A return further than this from its patch plane is not an observation (m).
-    pub plane_tolerance_m: f64,
-    /// Returns closer than this to a patch edge are left out (m).
-    pub edge_margin_m: f64,
-    /// A gap longer than this between two returns on one patch starts a new visit (s).
-    pub visit_gap_s: f64,
-    /// A visit longer than this is split (s): a visit shares one navigation error, which
-    /// stays constant only over a fraction of its correlation time.
-    pub max_visit_s: f64,
-    /// Visits with fewer returns are left out.
-    pub min_per_visit: usize,
-    /// At most this many returns of a visit are kept, evenly spaced in time (deterministic).
-    pub max_per_visit: usize,
-}
-
-impl Default for ObserveOptions {
-    fn default() -> Self {
-        ObserveOptions {
-            plane_tolerance_m: 0.15,
-            edge_margin_m: 0.1,
-            visit_gap_s: 1.0,
-            max_visit_s: 5.0,
-            min_per_visit: 20,
-            max_per_visit: 400,
-        }
-    }
-}
-
-/// Returns beyond [`ObserveOptions::plane_tolerance_m`] but within this distance (m) of a
+/// Returns beyond `diagnose.plane_tolerance_m` but within this distance (m) of a
 /// patch plane, inside its rectangle, are counted as `off_plane` (clutter in front of or behind
 /// the patch); further ones as `off_patches`.
 const NEAR_PLANE_M: f64 = 1.0;
@@ -126,7 +95,7 @@ pub fn observe(
     p: &LoadedPipeline,
     patches: &[PlanarPatch],
     patches_path: &Path,
-    opts: &ObserveOptions,
+    opts: &DiagnoseConfig,
 ) -> Result<Observed> {
     check_pipeline(p)?;
     let c = &p.config;
@@ -341,7 +310,7 @@ struct PatchIndex {
 }
 
 impl PatchIndex {
-    fn new(patches: &[PlanarPatch], opts: &ObserveOptions) -> Self {
+    fn new(patches: &[PlanarPatch], opts: &DiagnoseConfig) -> Self {
         let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
         let frames: Vec<PatchFrame> = patches
             .iter()
@@ -476,7 +445,7 @@ fn first_pass(
 /// tagged with their pass.
 fn group_visits(
     hits: Vec<(usize, Hit)>,
-    opts: &ObserveOptions,
+    opts: &DiagnoseConfig,
     counts: &mut ObserveCounts,
 ) -> Vec<PendingVisit> {
     let mut by_patch: BTreeMap<(usize, usize), Vec<Hit>> = BTreeMap::new();
@@ -614,18 +583,16 @@ fn visit_nav_cov(
 ) -> Result<[[f64; 6]; 6], RejectReason> {
     let mut cursor = traj.sigma_cursor().ok_or(RejectReason::OutsideAccuracy)?;
     let s = cursor.at(t_mid).map_err(RejectReason::from)?;
-    let mut p = [[0.0; 6]; 6];
-    for k in 0..3 {
-        p[k][k] = s.pos_ned_m[k].powi(2);
-        p[k + 3][k + 3] = s.att_rph_rad[k].powi(2);
-    }
     let s2 = frame.sigma_m.powi(2);
-    for i in 0..3 {
-        for j in 0..3 {
-            p[i][j] += s2 * frame.normal_n[i] * frame.normal_n[j];
-        }
-    }
-    Ok(p)
+    let n = &frame.normal_n;
+    let rms = [s.pos_ned_m, s.att_rph_rad];
+    Ok(std::array::from_fn(|i| {
+        std::array::from_fn(|j| {
+            let diag = if i == j { rms[i / 3][i % 3].powi(2) } else { 0.0 };
+            let patch = if i < 3 && j < 3 { s2 * n[i] * n[j] } else { 0.0 };
+            diag + patch
+        })
+    }))
 }
 
 /// Where and how a return was measured (`reference_id` and `pass` are set by the caller).

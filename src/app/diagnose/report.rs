@@ -1,0 +1,295 @@
+//! The diagnosis report: `diagnosis.json` (docs/conventions.md §8 schema first, then the
+//! documented extras of docs/diagnosis.md) and `summary.md`, what a surveyor reads first.
+
+use super::observe::ObserveCounts;
+use crate::io::atomic::write_atomic;
+use crate::{Error, Result};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::Path;
+
+/// File names in the diagnosis folder.
+pub const DIAGNOSIS_JSON: &str = "diagnosis.json";
+/// The summary for a surveyor.
+pub const SUMMARY_MD: &str = "summary.md";
+
+/// The verdict (docs/conventions.md §8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Verdict {
+    /// One catalogue effect (or inseparable group, or combination) explains the gap.
+    Effect,
+    /// The survey agrees with its model.
+    None,
+    /// The survey departs from its model and no catalogue effect explains it.
+    Unexplained,
+}
+
+/// Gap metrics on a set of references ("G" of docs/conventions.md §8).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GapMetrics {
+    /// Chi-square of the residuals with their full (visit-block) covariance, per degree of
+    /// freedom (1 for a survey that agrees with its model).
+    pub chi2_per_dof: f64,
+    /// RMS of the residuals (m).
+    pub rms_m: f64,
+    /// Mean residual (m).
+    pub mean_m: f64,
+    /// Share of residuals inside their 95% interval (0.95 for an honest model).
+    pub coverage_95: f64,
+    /// Number of residuals.
+    pub n: usize,
+}
+
+/// Gap before and after the correction, on the held-out references.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct GapBeforeAfter {
+    /// With the configured values.
+    pub before: GapMetrics,
+    /// Re-processed with the estimate (or after the model-free correction; or as before).
+    pub after: GapMetrics,
+}
+
+/// Variance inflation of one effect on this geometry.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ObservabilityRow {
+    /// Effect name.
+    pub effect: String,
+    /// Variance inflation factor (1 = independent of the others).
+    pub vif: f64,
+}
+
+/// Observability of the catalogue on this survey, before solving.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ObservabilityReport {
+    /// Condition number of the scaled normal matrix of all effects.
+    pub condition_number: f64,
+    /// Per effect.
+    pub effects: Vec<ObservabilityRow>,
+}
+
+/// Effects the data cannot separate (|correlation| > 0.9).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct GroupReport {
+    /// Members, the preferred first.
+    pub members: Vec<String>,
+    /// The data that would separate them.
+    pub hint: String,
+}
+
+/// One tested candidate (an effect, a group's preferred member, or a combination).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CandidateReport {
+    /// Effect names.
+    pub effects: Vec<String>,
+    /// Estimates on the fit split, in the effects' units.
+    pub estimate: Vec<f64>,
+    /// Their 1-sigma.
+    pub sigma: Vec<f64>,
+    /// Chi-square reduction on the held-out split.
+    pub held_out_chi2_reduction: f64,
+    /// p-value of the likelihood-ratio test.
+    pub p_value: f64,
+    /// Holm-adjusted p-value.
+    pub p_holm: f64,
+    /// Significant at the family-wise level.
+    pub significant: bool,
+}
+
+/// One bin of a covariate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BinReport {
+    /// Lower and upper covariate value of the bin (equal for a categorical level).
+    pub range: [f64; 2],
+    /// Returns in the bin.
+    pub n: usize,
+    /// Mean normalised residual (or offset, m, for a correction).
+    pub mean: f64,
+}
+
+/// The test of one covariate: do the normalised residuals depend on it?
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CovariateReport {
+    /// Covariate name (docs/conventions.md §8).
+    pub covariate: String,
+    /// p-value.
+    pub p_value: f64,
+    /// The bins tested.
+    pub bins: Vec<BinReport>,
+}
+
+/// A model-free correction: a binned offset along one covariate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ModelFreeReport {
+    /// Covariate name.
+    pub covariate: String,
+    /// Offsets (m) per bin, fitted on the fit split.
+    pub bins: Vec<BinReport>,
+    /// Share of the held-out excess chi-square it closes.
+    pub closed_fraction: f64,
+}
+
+/// `diagnosis.json`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// docs/conventions.md §8.
+    pub verdict: Verdict,
+    /// The named effect(s); an inseparable group lists all its members, the preferred first.
+    pub effects: Vec<String>,
+    /// Estimate per name in `effects` (unit of the name).
+    pub estimate: BTreeMap<String, f64>,
+    /// 1-sigma per name in `effects`.
+    pub sigma: BTreeMap<String, f64>,
+    /// Covariates where the gap (or what remains of it) lies, most significant first.
+    pub located_in: Vec<String>,
+    /// On the held-out references.
+    pub gap: GapBeforeAfter,
+    /// `--set` lines that re-run the pipeline with the effect added.
+    pub set: Vec<String>,
+    /// Extra: why the verdict (one sentence).
+    pub reason: String,
+    /// Extra: reference ids of the fit and held-out halves, and the split seed.
+    pub split: SplitReport,
+    /// Extra: observability of every effect on this geometry, before solving.
+    pub observability: ObservabilityReport,
+    /// Extra: inseparable groups.
+    pub groups: Vec<GroupReport>,
+    /// Extra: every tested candidate, best held-out chi-square reduction first.
+    pub candidates: Vec<CandidateReport>,
+    /// Extra: covariate tests, most significant first.
+    pub covariate_tests: Vec<CovariateReport>,
+    /// Extra: the model-free correction (verdict `unexplained`).
+    pub model_free: Option<ModelFreeReport>,
+    /// Extra: what happened to every return.
+    pub counts: ObserveCounts,
+    /// Extra: PNG files written beside the report.
+    pub plots: Vec<String>,
+}
+
+/// The split of the references.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SplitReport {
+    /// Seed of the split.
+    pub seed: u64,
+    /// Reference ids fitted on.
+    pub fit: Vec<String>,
+    /// Reference ids held out.
+    pub held_out: Vec<String>,
+}
+
+impl Diagnosis {
+    /// Writes `diagnosis.json` and `summary.md` into `dir` (atomically each).
+    pub fn write(&self, dir: &Path, pipeline: &Path) -> Result<()> {
+        let json = serde_json::to_string_pretty(self)
+            .map_err(|e| Error::Invalid(format!("diagnosis JSON: {e}")))?;
+        write_atomic(&dir.join(DIAGNOSIS_JSON), format!("{json}\n").as_bytes())?;
+        write_atomic(&dir.join(SUMMARY_MD), self.summary(pipeline).as_bytes())
+    }
+
+    /// The one-line verdict.
+    pub fn headline(&self) -> String {
+        match self.verdict {
+            Verdict::Effect => {
+                let named: Vec<String> = self
+                    .effects
+                    .iter()
+                    .map(|e| format!("{e} = {:.4e} +- {:.1e}", self.estimate[e], self.sigma[e]))
+                    .collect();
+                format!("effect: {}", named.join(", "))
+            }
+            Verdict::None => "none: the survey agrees with its model".into(),
+            Verdict::Unexplained => format!(
+                "unexplained: no catalogue effect closes the gap; it lies in {}",
+                if self.located_in.is_empty() {
+                    "no single covariate".to_string()
+                } else {
+                    self.located_in.join(", ")
+                }
+            ),
+        }
+    }
+
+    /// `summary.md`: verdict, gap before/after, where it lies, the re-run, the plots, the data.
+    pub fn summary(&self, pipeline: &Path) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "# Diagnosis of {}\n", pipeline.display());
+        let _ = writeln!(s, "**Verdict: {}**\n", self.headline());
+        let _ = writeln!(s, "{}\n", self.reason);
+        let _ = writeln!(s, "## Gap on the held-out references\n");
+        let _ = writeln!(
+            s,
+            "| | chi2/dof | RMS (mm) | mean (mm) | 95% coverage | returns |"
+        );
+        let _ = writeln!(s, "|---|---:|---:|---:|---:|---:|");
+        for (name, g) in [("before", &self.gap.before), ("after", &self.gap.after)] {
+            let _ = writeln!(
+                s,
+                "| {name} | {:.2} | {:.1} | {:+.1} | {:.1}% | {} |",
+                g.chi2_per_dof,
+                g.rms_m * 1e3,
+                g.mean_m * 1e3,
+                g.coverage_95 * 100.0,
+                g.n
+            );
+        }
+        let _ = writeln!(
+            s,
+            "\nAn honest model gives chi2/dof near 1 and 95% coverage near 95%.\n"
+        );
+        if !self.covariate_tests.is_empty() {
+            let _ = writeln!(s, "## Where the gap lies\n");
+            let _ = writeln!(s, "| covariate | p-value |\n|---|---:|");
+            for t in self.covariate_tests.iter().take(6) {
+                let _ = writeln!(s, "| {} | {:.2e} |", t.covariate, t.p_value);
+            }
+            s.push('\n');
+        }
+        if let Some(m) = &self.model_free {
+            let _ = writeln!(
+                s,
+                "A model-free offset binned along `{}` closes {:.0}% of the held-out excess \
+                 chi-square (diagnosis.json `model_free`).\n",
+                m.covariate,
+                m.closed_fraction * 100.0
+            );
+        }
+        if !self.set.is_empty() {
+            let _ = writeln!(s, "## Re-run with the correction\n\n```");
+            let sets: Vec<String> = self.set.iter().map(|l| format!("--set {l}")).collect();
+            let _ = writeln!(s, "kinescan run {} {}", pipeline.display(), sets.join(" "));
+            let _ = writeln!(
+                s,
+                "```\n\nor `kinescan run {}` in this folder.\n",
+                super::reprocess::CORRECTED_PIPELINE
+            );
+        }
+        if !self.plots.is_empty() {
+            let _ = writeln!(s, "## Plots\n");
+            for p in &self.plots {
+                let _ = writeln!(s, "![{p}]({p})\n");
+            }
+        }
+        let c = &self.counts;
+        let _ = writeln!(s, "## Data used\n");
+        let _ = writeln!(
+            s,
+            "{} returns read; {} on {} of {} patches ({} kept as observations, {} thinned, {} in \
+             short visits); {} off the patches, {} near a patch but off its plane, {} not \
+             georeferenced. Fitted on {} references, tested on {} held out.",
+            c.returns_read,
+            c.on_patches,
+            c.patches_read - c.patches_without_observations.len(),
+            c.patches_read,
+            c.observations,
+            c.thinned,
+            c.in_short_visits,
+            c.off_patches,
+            c.off_plane,
+            c.rejected.values().sum::<u64>(),
+            self.split.fit.len(),
+            self.split.held_out.len()
+        );
+        s
+    }
+}

@@ -1,0 +1,156 @@
+//! Re-processing with the chosen effects: each estimate is added to the configured value it
+//! corrects (docs/conventions.md §8), as `--set` lines on the loaded pipeline, and a corrected
+//! pipeline file that `kinescan run` accepts is written.
+
+use super::model::Effect;
+use crate::io::atomic::write_atomic;
+use crate::pipeline::config::{self, LoadedPipeline, PipelineConfig, TimeModel};
+use crate::{Error, Result};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// File name of the corrected pipeline in the diagnosis folder.
+pub const CORRECTED_PIPELINE: &str = "corrected.toml";
+/// File name of the LAS the corrected pipeline writes (beside it).
+pub const CORRECTED_LAS: &str = "corrected.las";
+
+/// The pipeline key an effect corrects, and the element for array keys.
+pub fn corrected_key(e: Effect) -> (&'static str, Option<usize>) {
+    match e {
+        Effect::AttitudeLatency => ("latency.attitude_s", None),
+        Effect::PositionLatency => ("latency.position_s", None),
+        Effect::ClockOffset => ("time.t0_s", None),
+        Effect::ClockDrift => ("time.period_s", None),
+        Effect::BoresightX => ("sensor.boresight_deg", Some(0)),
+        Effect::BoresightY => ("sensor.boresight_deg", Some(1)),
+        Effect::BoresightZ => ("sensor.boresight_deg", Some(2)),
+        Effect::LeverArmX => ("sensor.lever_arm_b_m", Some(0)),
+        Effect::LeverArmY => ("sensor.lever_arm_b_m", Some(1)),
+        Effect::LeverArmZ => ("sensor.lever_arm_b_m", Some(2)),
+        Effect::RangeZero => ("sensor.range_zero_m", None),
+        Effect::RangeScale => ("sensor.range_scale_ppm", None),
+        Effect::EncoderOffset => ("sensor.encoder_offset_deg", None),
+        Effect::Cone => ("sensor.alpha0_deg", None),
+        Effect::HeadingOffset => ("trajectory.heading_offset_deg", None),
+    }
+}
+
+/// A pipeline value as a number or a 3-array.
+#[derive(Debug, Clone, PartialEq)]
+enum Value {
+    Scalar(f64),
+    Vector([f64; 3]),
+}
+
+/// The configured value of a key (`None` for the keys this build's configuration lacks, which
+/// default to 0).
+fn configured(c: &PipelineConfig, key: &str) -> Result<Value> {
+    Ok(match key {
+        "latency.attitude_s" => Value::Scalar(c.latency.attitude_s),
+        "latency.position_s" => Value::Scalar(c.latency.position_s),
+        "time.t0_s" => {
+            if c.time.model != TimeModel::Software {
+                let problem = "clock_offset_s corrects time.t0_s, used by the software time \
+                               model only";
+                return Err(Error::Invalid(problem.into()));
+            }
+            Value::Scalar(c.time.t0_s.unwrap_or(0.0))
+        }
+        "time.period_s" => Value::Scalar(c.time.period_s),
+        "sensor.boresight_deg" => Value::Vector(c.sensor.boresight_deg),
+        "sensor.lever_arm_b_m" => Value::Vector(c.sensor.lever_arm_b_m),
+        "sensor.range_zero_m" => Value::Scalar(c.sensor.range_zero_m),
+        "sensor.alpha0_deg" => Value::Scalar(c.sensor.alpha0_deg),
+        "sensor.range_scale_ppm"
+        | "sensor.encoder_offset_deg"
+        | "trajectory.heading_offset_deg" => Value::Scalar(0.0),
+        other => unreachable!("{other} is not a corrected key"),
+    })
+}
+
+/// The `--set` lines that add each estimate to the value it corrects (`clock_drift_ppm`
+/// scales the period: `T (1 + x 1e-6)`). Array keys get one line with every element.
+pub fn set_lines(c: &PipelineConfig, estimates: &[(Effect, f64)]) -> Result<Vec<String>> {
+    let mut values: BTreeMap<&str, Value> = BTreeMap::new();
+    for &(e, x) in estimates {
+        let (key, element) = corrected_key(e);
+        let v = match values.remove(key) {
+            Some(v) => v,
+            None => configured(c, key)?,
+        };
+        let v = match (v, element) {
+            (Value::Scalar(p), None) if e == Effect::ClockDrift => {
+                Value::Scalar(p * (1.0 + x * 1e-6))
+            }
+            (Value::Scalar(p), None) => Value::Scalar(p + x),
+            (Value::Vector(mut a), Some(k)) => {
+                a[k] += x;
+                Value::Vector(a)
+            }
+            _ => unreachable!("element given for array keys only"),
+        };
+        values.insert(key, v);
+    }
+    Ok(values
+        .into_iter()
+        .map(|(key, v)| match v {
+            Value::Scalar(x) => format!("{key}={x:?}"),
+            Value::Vector([a, b, c]) => format!("{key}=[{a:?}, {b:?}, {c:?}]"),
+        })
+        .collect())
+}
+
+/// The pipeline re-loaded with its own overrides and `set`, writing its LAS to
+/// `out_dir/corrected.las`.
+pub fn corrected(p: &LoadedPipeline, set: &[String], out_dir: &Path) -> Result<LoadedPipeline> {
+    let overrides: Vec<String> = p.overrides.iter().chain(set).cloned().collect();
+    let mut loaded = config::load(&p.path, &overrides)?;
+    loaded.config.output.las = out_dir.join(CORRECTED_LAS);
+    loaded.config.output.report = None;
+    Ok(loaded)
+}
+
+/// Writes `c` as a pipeline file at `path` that `kinescan run` accepts on its own: every path
+/// absolute, the origin and the `--set` lines in a header comment.
+pub fn write_pipeline(
+    c: &PipelineConfig,
+    origin: &Path,
+    set: &[String],
+    path: &Path,
+) -> Result<()> {
+    let mut c = c.clone();
+    let abs = |p: &mut PathBuf| -> Result<()> {
+        *p = std::path::absolute(&*p).map_err(|e| Error::io(&*p, e))?;
+        Ok(())
+    };
+    abs(&mut c.inputs.sbet)?;
+    if let Some(s) = c.inputs.smrmsg.as_mut() {
+        abs(s)?;
+    }
+    for p in c.inputs.profiles.iter_mut() {
+        abs(p)?;
+    }
+    abs(&mut c.output.las)?;
+    if let Some(sy) = c.sync.as_mut() {
+        abs(&mut sy.points)?;
+        if let Some(t) = sy.targets.as_mut() {
+            abs(t)?;
+        }
+    }
+    if let Some(d) = c.diagnose.as_mut() {
+        for p in d.patches.iter_mut().chain(d.out.iter_mut()) {
+            abs(p)?;
+        }
+    }
+    let body = toml::to_string(&c).map_err(|e| Error::Invalid(format!("pipeline TOML: {e}")))?;
+    let mut text = format!(
+        "# Written by `kinescan diagnose`: {} with the diagnosed correction added\n",
+        origin.display()
+    );
+    for line in set {
+        text.push_str(&format!("#   --set {line}\n"));
+    }
+    text.push('\n');
+    text.push_str(&body);
+    write_atomic(path, text.as_bytes())
+}
