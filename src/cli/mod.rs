@@ -32,6 +32,32 @@ enum Command {
     Sensitivity(sensitivity_cmd::SensitivityArgs),
 }
 
+/// The error and its causes joined by `: `, leaving out a cause whose text is already in the
+/// message (the library's errors carry their OS error's text: printed once, not twice).
+fn message(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if msg.contains(&text) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&text);
+    }
+    msg
+}
+
+/// `--threads N`: a whole number >= 1.
+pub(crate) fn threads(s: &str) -> Result<usize, String> {
+    match s.parse::<usize>() {
+        Ok(0) => Err("must be at least 1 (omit it to use every core)".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("`{s}` is not a whole number: {e}")),
+    }
+}
+
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
@@ -48,7 +74,7 @@ pub fn run() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", message(&e));
             ExitCode::FAILURE
         }
     }

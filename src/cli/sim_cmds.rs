@@ -25,7 +25,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     csv: bool,
     /// Worker threads (default: all cores; the output does not depend on it).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::threads)]
     threads: Option<usize>,
 }
 
@@ -38,7 +38,7 @@ pub struct DemoArgs {
     #[arg(long, default_value = "work/demo")]
     out: PathBuf,
     /// Worker threads (default: all cores).
-    #[arg(long)]
+    #[arg(long, value_parser = crate::cli::threads)]
     threads: Option<usize>,
 }
 

@@ -62,9 +62,15 @@ impl<R: BufRead> Lines<R> {
                 return Ok(false);
             }
             self.line_no += 1;
-            if !self.buf.trim().is_empty() {
-                return Ok(true);
+            if self.buf.trim().is_empty() {
+                continue;
             }
+            if !self.buf.ends_with('\n') {
+                let msg = "the last line has no newline: the file may be cut short inside it \
+                           (if the line is complete, end it with a newline)";
+                return Err(Error::bad_record(&self.path, self.at(), msg));
+            }
+            return Ok(true);
         }
     }
 

@@ -94,6 +94,11 @@ pub struct ProfileInfo {
     pub tally: ProfileTally,
     /// Hardware time tag range (s), when the time column is present.
     pub time_range_s: Option<(f64, f64)>,
+    /// Returns a run rejects for their values (a non-finite field or a negative range; binary
+    /// files only: the CSV reader refuses them), counted like `run` counts them.
+    pub invalid_returns: u64,
+    /// The first of them: "record N: what is wrong".
+    pub first_invalid: Option<String>,
 }
 
 /// What `kinescan info` reports about one file.
@@ -147,11 +152,20 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
         }
         FileKind::ProfilesBinary => {
             let f = ProfileFile::open(path)?;
-            let p = profile_info(
-                f.columns(),
-                (0..f.len()).map(|i| Ok((f.get_checked(i)?, i as u64))),
-            )?;
-            info.records = p.tally.returns;
+            let mut invalid = (0u64, None);
+            let valid = (0..f.len()).filter_map(|i| match f.get_checked(i) {
+                Ok(r) => Some(Ok((r, i as u64))),
+                Err(e) => {
+                    invalid.0 += 1;
+                    if let Error::BadRecord { at, problem, .. } = e {
+                        invalid.1.get_or_insert(format!("{at}: {problem}"));
+                    }
+                    None
+                }
+            });
+            let mut p = profile_info(f.columns(), valid)?;
+            (p.invalid_returns, p.first_invalid) = invalid;
+            info.records = f.len() as u64;
             info.profiles = Some(p);
         }
         FileKind::ProfilesCsv => {
@@ -348,6 +362,8 @@ fn profile_info(
         columns,
         tally,
         time_range_s,
+        invalid_returns: 0,
+        first_invalid: None,
     })
 }
 
@@ -436,6 +452,14 @@ impl fmt::Display for ProfileInfo {
         )?;
         if let Some((lo, hi)) = self.time_range_s {
             write!(f, "\n  time tags {lo:.6} .. {hi:.6} s")?;
+        }
+        if self.invalid_returns > 0 {
+            write!(
+                f,
+                "\n  invalid returns (rejected by run) {}, first at {}",
+                self.invalid_returns,
+                self.first_invalid.as_deref().unwrap_or("-")
+            )?;
         }
         Ok(())
     }

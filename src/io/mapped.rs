@@ -19,7 +19,14 @@ impl MappedRecords {
     /// Maps `path`; refuses a file whose body is not a whole number of records.
     pub fn open(path: &Path, header_bytes: usize, record_bytes: usize, kind: &str) -> Result<Self> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
-        let size = file.metadata().map_err(|e| Error::io(path, e))?.len() as usize;
+        let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+        if meta.is_dir() {
+            return Err(Error::bad_file(
+                path,
+                format!("is a directory, not a {kind} file"),
+            ));
+        }
+        let size = meta.len() as usize;
         if size < header_bytes {
             return Err(Error::bad_file(
                 path,

@@ -264,6 +264,17 @@ pub enum TimeModel {
     HardwareReturn,
 }
 
+impl TimeModel {
+    /// The model as spelled in a pipeline file (`hardware_return`...).
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeModel::Software => "software",
+            TimeModel::HardwareProfile => "hardware_profile",
+            TimeModel::HardwareReturn => "hardware_return",
+        }
+    }
+}
+
 /// `[time]`: the scanner clock.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -628,11 +639,14 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
         );
     }
     let t = &c.time;
-    if !finite_pos(t.period_s) || t.period_s > 1.0 {
+    if !(MIN_PERIOD_S..=1.0).contains(&t.period_s) {
         return bad(
             "time.period_s",
-            format!("must be in (0, 1] s, got {}", t.period_s),
+            format!("must be in [{MIN_PERIOD_S}, 1] s, got {:?}", t.period_s),
         );
+    }
+    if let Some(t0) = t.t0_s.filter(|v| !v.is_finite()) {
+        return bad("time.t0_s", format!("must be a finite number, got {t0}"));
     }
     if let Some(sy) = &c.sync {
         validate_sync(sy, t, source)?;
@@ -678,15 +692,44 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
             );
         }
     }
-    if let FrameConfig::Utm { zone: Some(z), .. } = o.frame {
-        if !(1..=60).contains(&z) {
-            return bad(
-                "output.frame.zone",
-                format!("UTM zone must be 1..60, got {z}"),
-            );
+    validate_frame(&o.frame, source)
+}
+
+/// Shortest mirror period accepted (s): a 10 kHz mirror, far beyond any profile scanner;
+/// anything shorter is a typing error (and would make profile times meaningless).
+pub const MIN_PERIOD_S: f64 = 1e-4;
+
+fn validate_frame(frame: &FrameConfig, source: &str) -> Result<()> {
+    let bad = |key: &str, problem: String| Err(Error::config(source, key, problem));
+    match *frame {
+        FrameConfig::Utm { zone: Some(z), .. } if !(1..=60).contains(&z) => bad(
+            "output.frame.zone",
+            format!("UTM zone must be 1..60, got {z}"),
+        ),
+        FrameConfig::Enu {
+            lat_deg,
+            lon_deg,
+            h_m,
+        } => {
+            if !(-90.0..=90.0).contains(&lat_deg) {
+                return bad(
+                    "output.frame.lat_deg",
+                    format!("must be in [-90, 90] deg, got {lat_deg}"),
+                );
+            }
+            if !(-180.0..=180.0).contains(&lon_deg) {
+                return bad(
+                    "output.frame.lon_deg",
+                    format!("must be in [-180, 180] deg, got {lon_deg}"),
+                );
+            }
+            if !h_m.is_finite() {
+                return bad("output.frame.h_m", format!("must be finite, got {h_m}"));
+            }
+            Ok(())
         }
+        _ => Ok(()),
     }
-    Ok(())
 }
 
 fn validate_sync(sy: &SyncConfig, t: &TimeConfig, source: &str) -> Result<()> {

@@ -523,8 +523,8 @@ fn georeferencer<'a>(
     let columns = file.columns();
     if c.time.model != TimeModel::Software && !columns.time {
         let msg = format!(
-            "time.model = {:?} needs a time_s column, which this file lacks",
-            c.time.model
+            "time.model = \"{}\" needs a time_s column, which this file lacks",
+            c.time.model.name()
         );
         return Err(Error::bad_file(file.path(), msg));
     }

@@ -24,6 +24,7 @@ mod pipelines;
 mod realdata;
 mod realdata_leeward;
 mod safety_collisions;
+mod safety_messages;
 mod sim_effects;
 mod sim_references;
 mod sim_stats;
