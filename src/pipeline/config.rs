@@ -398,6 +398,13 @@ pub struct OutputConfig {
     /// Coordinate scale (m per integer step); the quantisation error is half of it.
     #[serde(default = "default_scale_m")]
     pub scale_m: f64,
+    /// LAS coordinate offset X, Y, Z in the map frame (m); default: the map coordinates of the
+    /// first trajectory record rounded to 1 km. Points must lie within `2^31 * scale_m` of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset_m: Option<[f64; 3]>,
+    /// Accept a run that writes no point (default: such a run fails and keeps the old output).
+    #[serde(default)]
+    pub allow_empty: bool,
     /// File splitting.
     #[serde(default = "default_split")]
     pub split: SplitMode,
@@ -675,6 +682,12 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
                 "must be in (0, 0.001] m (quantisation <= 0.5 mm), got {}",
                 o.scale_m
             ),
+        );
+    }
+    if o.offset_m.is_some_and(|v| !v.iter().all(|x| x.is_finite())) {
+        return bad(
+            "output.offset_m",
+            format!("must be three finite numbers, got {:?}", o.offset_m),
         );
     }
     if o.split == SplitMode::MaxPoints && o.max_points_per_file.is_none_or(|n| n == 0) {

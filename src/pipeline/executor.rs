@@ -429,6 +429,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         inputs.push(report);
     }
     bar.finish_and_clear();
+    check_not_empty(p, &inputs)?;
     let summaries = sink.finish()?;
     let georef_s = georef_started.elapsed().as_secs_f64();
     stages.push(StageTiming {
@@ -467,6 +468,35 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         peak_rss_bytes: super::report::peak_rss_bytes(),
         sync,
     })
+}
+
+/// Refuses a run that wrote no point unless `output.allow_empty` (before anything is
+/// published, so the previous output stays).
+fn check_not_empty(p: &LoadedPipeline, inputs: &[InputReport]) -> Result<()> {
+    let mut totals = ReturnCounts::default();
+    inputs.iter().for_each(|i| totals.merge(&i.counts));
+    if totals.written > 0 || p.config.output.allow_empty {
+        return Ok(());
+    }
+    let reasons: Vec<String> = totals
+        .rejected
+        .iter()
+        .map(|(reason, n)| format!("{n} {}", reason.describe()))
+        .collect();
+    let why = if reasons.is_empty() {
+        String::new()
+    } else {
+        format!(" (rejected: {})", reasons.join("; "))
+    };
+    Err(Error::config(
+        p.path.display().to_string(),
+        "output.allow_empty",
+        format!(
+            "no point written from {} returns read{why}: the previous output is kept; fix the \
+             inputs or set output.allow_empty = true to write an empty output",
+            totals.read
+        ),
+    ))
 }
 
 /// The output mapping frame: UTM zone and hemisphere from the first trajectory record unless

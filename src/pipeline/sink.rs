@@ -41,7 +41,10 @@ impl SinkSettings {
             h_m: first.alt_m,
         };
         let origin = frame.ecef_to_map(&geodetic_to_ecef(g));
-        let offset = [origin.x, origin.y, origin.z].map(|v| (v / 1000.0).round() * 1000.0);
+        let offset = c
+            .output
+            .offset_m
+            .unwrap_or([origin.x, origin.y, origin.z].map(|v| (v / 1000.0).round() * 1000.0));
         let time = match c.inputs.gps_week {
             Some(gps_week) => GpsTimeConvention::AdjustedStandard { gps_week },
             None => GpsTimeConvention::WeekSeconds,

@@ -65,7 +65,7 @@ fn sbet_truncated_and_bad_records() {
     std::fs::write(&p, sbet_bytes(&recs)).unwrap();
     assert_err_contains(
         SbetFile::open(&p).unwrap_err(),
-        &["record 0", "latitude 2 rad"],
+        &["t.sbet", "record 0", "latitude 2 rad"],
     );
 }
 
@@ -214,7 +214,11 @@ fn binary_profiles_bad_magic_and_count() {
         f.get_checked(2).unwrap_err(),
         &["prof.bin", "record 2", "range_m is NaN"],
     );
-    assert_err_contains(describe(&p).unwrap_err(), &["record 2", "range_m is NaN"]);
+    // `info` counts it as `run` does (rejected, named) instead of refusing the file.
+    let info = describe(&p).unwrap();
+    let prof = info.profiles.unwrap();
+    assert_eq!(prof.invalid_returns, 1);
+    assert_err_contains(prof.first_invalid.unwrap(), &["record 2", "range_m is NaN"]);
 
     std::fs::write(&p, &good[..10]).unwrap();
     let e = ProfileFile::open(&p).unwrap_err();
