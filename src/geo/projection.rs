@@ -185,6 +185,18 @@ impl MapFrame {
         })
     }
 
+    /// Longitude of `lon_rad` from the central meridian of a UTM frame (deg, wrapped to
+    /// [-180, 180)); `None` for other frames.
+    pub fn utm_offset_deg(&self, lon_rad: f64) -> Option<f64> {
+        match *self {
+            MapFrame::Utm { zone, .. } => {
+                let d = (lon_rad - central_meridian_rad(zone)).to_degrees();
+                Some((d + 180.0).rem_euclid(360.0) - 180.0)
+            }
+            _ => None,
+        }
+    }
+
     /// Local ENU frame about `origin`.
     pub fn local_enu(origin: Geodetic) -> Result<Self> {
         let f = MapFrame::LocalEnu { origin };

@@ -377,6 +377,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         files.push(FileRecord::of("smrmsg", s)?);
     }
     let frame = map_frame(&c.output.frame, &traj)?;
+    check_frame_near_data(p, &frame, &traj)?;
     let out_dir = c
         .output
         .las
@@ -497,6 +498,60 @@ fn check_not_empty(p: &LoadedPipeline, inputs: &[InputReport]) -> Result<()> {
             totals.read
         ),
     ))
+}
+
+/// Farthest a trajectory position may lie from a UTM zone's central meridian (deg): the
+/// zone's own 3 deg plus a 1 deg margin (scale error there about 1e-3; beyond it coordinates
+/// lose meaning fast: zone 60 at 11.6 E is 180 deg away).
+pub const UTM_MAX_OFFSET_DEG: f64 = 4.0;
+/// Latitude (deg) beyond which data on the other side of the equator than the configured
+/// hemisphere is refused.
+const HEMISPHERE_MARGIN_DEG: f64 = 1.0;
+
+/// Refuses a UTM frame far from the trajectory (every record checked), naming the key to
+/// change.
+fn check_frame_near_data(p: &LoadedPipeline, frame: &MapFrame, traj: &Trajectory) -> Result<()> {
+    let sbet = traj.sbet();
+    let (mut worst, mut lat_min, mut lat_max) = (0.0f64, f64::INFINITY, f64::NEG_INFINITY);
+    for i in 0..sbet.len() {
+        let r = sbet.record(i);
+        if let Some(d) = frame.utm_offset_deg(r.lon_rad) {
+            worst = if d.abs() > worst.abs() { d } else { worst };
+        }
+        lat_min = lat_min.min(r.lat_rad.to_degrees());
+        lat_max = lat_max.max(r.lat_rad.to_degrees());
+    }
+    let source = p.path.display().to_string();
+    if worst.abs() > UTM_MAX_OFFSET_DEG {
+        return Err(Error::config(
+            source,
+            "output.frame.zone",
+            format!(
+                "{frame}: the trajectory reaches {worst:.1} deg from the zone's central meridian \
+                 (at most +-{UTM_MAX_OFFSET_DEG} deg: the zone's 3 deg plus a margin); give the \
+                 zone that contains the data, or leave it out to take it from the trajectory"
+            ),
+        ));
+    }
+    if let MapFrame::Utm { north, .. } = *frame {
+        let wrong = if north {
+            lat_min < -HEMISPHERE_MARGIN_DEG
+        } else {
+            lat_max > HEMISPHERE_MARGIN_DEG
+        };
+        if wrong {
+            return Err(Error::config(
+                source,
+                "output.frame.north",
+                format!(
+                    "{frame}: the trajectory's latitudes {lat_min:.2} .. {lat_max:.2} deg are in \
+                     the other hemisphere; set north = {} or leave it out",
+                    !north
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The output mapping frame: UTM zone and hemisphere from the first trajectory record unless
@@ -803,6 +858,7 @@ pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     };
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let frame = map_frame(&c.output.frame, &traj)?;
+    check_frame_near_data(p, &frame, &traj)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     if let Some(sync) = &c.sync {
         crate::io::points::read_control_points(&sync.points)?;

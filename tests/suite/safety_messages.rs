@@ -220,3 +220,24 @@ fn a_file_cut_inside_its_last_line_is_refused_naming_the_line() {
     );
     import_csv(&whole, &d.join("whole.ksprof")).unwrap();
 }
+
+#[test]
+fn a_utm_frame_far_from_the_data_is_refused_naming_the_key() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    survey(d); // 11.575 E, 48.137 N: zone 32 (central meridian 9 E)
+    let frame =
+        |zone: u8, north: bool| format!("output.frame={{kind=\"utm\",zone={zone},north={north}}}");
+    for cmd in ["run", "validate"] {
+        let e = failure(d, &[cmd, "pipeline.toml", "--set", &frame(60, true)]);
+        assert!(
+            e.contains("key `output.frame.zone`") && e.contains("central meridian"),
+            "{e}"
+        );
+        let e = failure(d, &[cmd, "pipeline.toml", "--set", &frame(32, false)]);
+        assert!(e.contains("key `output.frame.north`"), "{e}");
+    }
+    // The neighbouring zone (central meridian 15 E, 3.4 deg away) is within the margin.
+    let o = kinescan(d, &["validate", "pipeline.toml", "--set", &frame(33, true)]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
