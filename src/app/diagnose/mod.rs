@@ -1,6 +1,8 @@
 //! `kinescan diagnose`: where a survey departs from its model, which catalogue effect causes
 //! it, and how far the gap shrinks once that effect is added (docs/diagnosis.md).
 
+pub mod fit;
+pub mod metrics;
 pub mod model;
 pub mod observe;
 pub mod plots;

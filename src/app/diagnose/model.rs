@@ -1,5 +1,14 @@
 //! The data the diagnosis statistics work on: one [`Observation`] per return on a reference
-//! patch, grouped into [`Visit`]s (docs/diagnosis.md).
+//! patch, grouped into [`Visit`]s (docs/diagnosis.md), and the residual model the statistics rest
+//! on (docs/diagnosis.md, "Statistics"):
+//!
+//! `r_v = S_v theta + G_v z_v + e_v`, `e_v ~ N(0, diag(var_white))`, `z_v ~ N(0, P_v)`,
+//!
+//! for the returns of visit `v`: `S_v` rows are the effect signatures, `G_v` rows the
+//! navigation gradients, `z_v` the navigation error shared by the visit (correlated over tens
+//! of seconds), `P_v` its covariance. Visits are independent.
+
+use crate::{Error, Result};
 
 /// Number of catalogue effects (docs/conventions.md §8).
 pub const N_EFFECTS: usize = Effect::ALL.len();
@@ -166,4 +175,415 @@ pub struct ObservationSet {
     pub reference_ids: Vec<String>,
     /// Number of passes (profile files).
     pub passes: usize,
+}
+
+/// Column of `effect` in [`Observation::signature`].
+pub fn signature_index(effect: Effect) -> usize {
+    Effect::ALL
+        .iter()
+        .position(|&e| e == effect)
+        .expect("Effect::ALL lists every effect")
+}
+
+/// A covariate, by its docs/conventions.md §8 name.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Covariate {
+    /// `time_s`
+    TimeS,
+    /// `range_m`
+    RangeM,
+    /// `beta_deg`
+    BetaDeg,
+    /// `incidence_deg`
+    IncidenceDeg,
+    /// `speed_mps`
+    SpeedMps,
+    /// `yaw_rate_dps`
+    YawRateDps,
+    /// `roll_rate_dps`
+    RollRateDps,
+    /// `pitch_rate_dps`
+    PitchRateDps,
+    /// `heading_deg`
+    HeadingDeg,
+    /// `side`
+    Side,
+    /// `pass`
+    Pass,
+    /// `reference_id`
+    ReferenceId,
+}
+
+impl Covariate {
+    /// Every covariate.
+    pub const ALL: [Covariate; 12] = [
+        Covariate::TimeS,
+        Covariate::RangeM,
+        Covariate::BetaDeg,
+        Covariate::IncidenceDeg,
+        Covariate::SpeedMps,
+        Covariate::YawRateDps,
+        Covariate::RollRateDps,
+        Covariate::PitchRateDps,
+        Covariate::HeadingDeg,
+        Covariate::Side,
+        Covariate::Pass,
+        Covariate::ReferenceId,
+    ];
+
+    /// The name of docs/conventions.md §8.
+    pub fn name(self) -> &'static str {
+        match self {
+            Covariate::TimeS => "time_s",
+            Covariate::RangeM => "range_m",
+            Covariate::BetaDeg => "beta_deg",
+            Covariate::IncidenceDeg => "incidence_deg",
+            Covariate::SpeedMps => "speed_mps",
+            Covariate::YawRateDps => "yaw_rate_dps",
+            Covariate::RollRateDps => "roll_rate_dps",
+            Covariate::PitchRateDps => "pitch_rate_dps",
+            Covariate::HeadingDeg => "heading_deg",
+            Covariate::Side => "side",
+            Covariate::Pass => "pass",
+            Covariate::ReferenceId => "reference_id",
+        }
+    }
+
+    /// Whether the covariate takes categories (one bin per value) rather than a continuum.
+    pub fn is_categorical(self) -> bool {
+        matches!(
+            self,
+            Covariate::Side | Covariate::Pass | Covariate::ReferenceId
+        )
+    }
+
+    /// The covariate's value for one return (side: left 0, right 1).
+    pub fn value(self, c: &Covariates) -> f64 {
+        match self {
+            Covariate::TimeS => c.time_s,
+            Covariate::RangeM => c.range_m,
+            Covariate::BetaDeg => c.beta_deg,
+            Covariate::IncidenceDeg => c.incidence_deg,
+            Covariate::SpeedMps => c.speed_mps,
+            Covariate::YawRateDps => c.yaw_rate_dps,
+            Covariate::RollRateDps => c.roll_rate_dps,
+            Covariate::PitchRateDps => c.pitch_rate_dps,
+            Covariate::HeadingDeg => c.heading_deg,
+            Covariate::Side => match c.side {
+                Side::Left => 0.0,
+                Side::Right => 1.0,
+            },
+            Covariate::Pass => c.pass as f64,
+            Covariate::ReferenceId => c.reference_id as f64,
+        }
+    }
+}
+
+impl ObservationSet {
+    /// Checks every index and number the statistics rely on; the error names the observation
+    /// or visit and the field.
+    pub fn validate(&self) -> Result<()> {
+        for (v, visit) in self.visits.iter().enumerate() {
+            if visit.reference >= self.reference_ids.len() {
+                return Err(invalid(format!(
+                    "visit {v}: reference {} but only {} reference ids",
+                    visit.reference,
+                    self.reference_ids.len()
+                )));
+            }
+            if visit.nav_cov.iter().flatten().any(|x| !x.is_finite()) {
+                return Err(invalid(format!("visit {v}: nav_cov is not finite")));
+            }
+        }
+        for (i, o) in self.observations.iter().enumerate() {
+            let Some(visit) = self.visits.get(o.visit) else {
+                return Err(invalid(format!(
+                    "observation {i}: visit {} but only {} visits",
+                    o.visit,
+                    self.visits.len()
+                )));
+            };
+            if visit.reference != o.reference {
+                return Err(invalid(format!(
+                    "observation {i}: reference {} but its visit {} is on reference {}",
+                    o.reference, o.visit, visit.reference
+                )));
+            }
+            if !(o.var_white_m2.is_finite() && o.var_white_m2 > 0.0) {
+                return Err(invalid(format!(
+                    "observation {i}: var_white_m2 = {} (must be finite and > 0)",
+                    o.var_white_m2
+                )));
+            }
+            let finite = o.residual_m.is_finite()
+                && o.nav_gradient.iter().all(|x| x.is_finite())
+                && o.signature.iter().all(|x| x.is_finite());
+            if !finite {
+                return Err(invalid(format!(
+                    "observation {i}: residual_m, nav_gradient or signature is not finite"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The observations of each visit (indices into [`Self::observations`]).
+    pub(crate) fn visit_members(&self) -> Vec<Vec<usize>> {
+        let mut members = vec![Vec::new(); self.visits.len()];
+        for (i, o) in self.observations.iter().enumerate() {
+            members[o.visit].push(i);
+        }
+        members
+    }
+
+    /// Reference indices that have at least one observation, ascending.
+    pub fn observed_references(&self) -> Vec<usize> {
+        let mut seen = vec![false; self.reference_ids.len()];
+        for o in &self.observations {
+            if let Some(s) = seen.get_mut(o.reference) {
+                *s = true;
+            }
+        }
+        (0..seen.len()).filter(|&r| seen[r]).collect()
+    }
+}
+
+fn invalid(problem: String) -> Error {
+    Error::Invalid(format!("diagnosis observations: {problem}"))
+}
+
+/// A correction of the residuals by catalogue effects: `r - S theta`.
+#[derive(Debug, Clone, Copy)]
+pub struct Theta<'a> {
+    /// The effects.
+    pub effects: &'a [Effect],
+    /// Their values, in the unit of each name.
+    pub values: &'a [f64],
+}
+
+impl Theta<'_> {
+    /// The residual of `o` after the correction (m).
+    pub fn corrected(&self, o: &Observation) -> f64 {
+        o.residual_m
+            - self
+                .effects
+                .iter()
+                .zip(self.values)
+                .map(|(&e, &x)| o.signature[signature_index(e)] * x)
+                .sum::<f64>()
+    }
+}
+
+/// Synthetic observation sets drawn from the model itself, for the statistics' unit tests.
+#[cfg(test)]
+pub(crate) mod synthetic {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, StandardNormal};
+
+    /// How to draw a set.
+    #[derive(Clone)]
+    pub struct Scenario {
+        pub references: usize,
+        pub passes: usize,
+        pub returns_per_visit: usize,
+        /// White noise sigma (m).
+        pub sigma_white_m: f64,
+        /// Navigation position sigma (m) and attitude sigma (rad).
+        pub sigma_pos_m: f64,
+        pub sigma_att_rad: f64,
+        /// Injected effects and their values.
+        pub truth: Vec<(Effect, f64)>,
+        /// Second effect whose signature is made nearly equal to the first's (correlation
+        /// above 0.9), when given.
+        pub twin: Option<(Effect, Effect)>,
+        /// Amplitude (m) of an out-of-model residual periodic in range (period 12 m).
+        pub range_cyclic_m: f64,
+    }
+
+    impl Default for Scenario {
+        fn default() -> Self {
+            Scenario {
+                references: 24,
+                passes: 3,
+                returns_per_visit: 40,
+                sigma_white_m: 0.01,
+                sigma_pos_m: 0.02,
+                sigma_att_rad: 1e-4,
+                truth: Vec::new(),
+                twin: None,
+                range_cyclic_m: 0.0,
+            }
+        }
+    }
+
+    /// Period of the out-of-model range term (m).
+    pub const RANGE_PERIOD_M: f64 = 12.0;
+
+    fn normal(rng: &mut ChaCha8Rng) -> f64 {
+        StandardNormal.sample(rng)
+    }
+
+    /// Signatures: a distinct smooth function of the covariates per effect, so that no two
+    /// effects correlate above 0.9 unless `twin` asks for it.
+    fn signatures(c: &Covariates, u: [f64; 3]) -> [f64; N_EFFECTS] {
+        let r = c.range_m / 25.0;
+        let b = c.beta_deg.to_radians();
+        let h = c.heading_deg.to_radians();
+        let t = c.time_s / 300.0;
+        [
+            c.yaw_rate_dps * r / 10.0,
+            c.speed_mps / 10.0 * u[0],
+            (c.speed_mps - 9.0) / 6.0,
+            (t - 1.0) * c.speed_mps / 10.0,
+            r * b.sin(),
+            r * b.cos(),
+            r * u[1],
+            h.cos() * u[2],
+            h.sin(),
+            b.cos() * 0.8 - u[2] * 0.3,
+            1.0,
+            r - 0.6,
+            r * (2.0 * b).sin(),
+            r * b.sin() * b.sin() - 0.3,
+            r * h.sin() * u[1],
+        ]
+    }
+
+    /// Draws a set from the model with `seed`.
+    pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut set = ObservationSet {
+            reference_ids: (0..s.references).map(|r| format!("P{r}")).collect(),
+            passes: s.passes,
+            ..Default::default()
+        };
+        let att2 = s.sigma_att_rad * s.sigma_att_rad;
+        let pos2 = s.sigma_pos_m * s.sigma_pos_m;
+        for reference in 0..s.references {
+            let normal_dir: [f64; 3] = [
+                rng.random_range(-0.5..0.5),
+                rng.random_range(-0.5..0.5),
+                1.0,
+            ];
+            for pass in 0..s.passes {
+                let v = set.visits.len();
+                let mut nav_cov = [[0.0; 6]; 6];
+                for (k, row) in nav_cov.iter_mut().enumerate() {
+                    row[k] = if k < 3 { pos2 } else { att2 } * rng.random_range(0.5..1.5);
+                }
+                let heading = rng.random_range(0.0..360.0);
+                let speed = rng.random_range(3.0..15.0);
+                let yaw_rate = rng.random_range(-10.0..10.0);
+                let t0 = rng.random_range(0.0..600.0);
+                set.visits.push(Visit {
+                    reference,
+                    pass,
+                    nav_cov,
+                });
+                for _ in 0..s.returns_per_visit {
+                    let beta: f64 = rng.random_range(-90.0..90.0);
+                    let covariates = Covariates {
+                        time_s: t0 + rng.random_range(0.0..2.0),
+                        range_m: rng.random_range(5.0..50.0),
+                        beta_deg: beta,
+                        incidence_deg: rng.random_range(0.0..80.0),
+                        speed_mps: speed,
+                        yaw_rate_dps: yaw_rate + rng.random_range(-1.0..1.0),
+                        roll_rate_dps: rng.random_range(-2.0..2.0),
+                        pitch_rate_dps: rng.random_range(-2.0..2.0),
+                        heading_deg: heading,
+                        side: if beta < 0.0 { Side::Left } else { Side::Right },
+                        pass,
+                        reference_id: reference,
+                    };
+                    let u = [normal(&mut rng), normal(&mut rng), normal(&mut rng)];
+                    let mut signature = signatures(&covariates, u);
+                    if let Some((a, b)) = s.twin {
+                        signature[signature_index(b)] = 1.3 * signature[signature_index(a)]
+                            + 0.15
+                                * normal(&mut rng)
+                                * signature[signature_index(a)].abs().max(0.3);
+                    }
+                    let lever = covariates.range_m;
+                    let nav_gradient = [
+                        normal_dir[0],
+                        normal_dir[1],
+                        normal_dir[2],
+                        lever * rng.random_range(-1.0..1.0),
+                        lever * rng.random_range(-1.0..1.0),
+                        lever * rng.random_range(-0.3..0.3),
+                    ];
+                    let var_white_m2 = (s.sigma_white_m * rng.random_range(0.7..1.4)).powi(2);
+                    set.observations.push(Observation {
+                        reference,
+                        visit: v,
+                        residual_m: 0.0,
+                        var_white_m2,
+                        nav_gradient,
+                        signature,
+                        covariates,
+                    });
+                }
+            }
+        }
+        fill_residuals(&mut set, s, seed ^ 0x5eed);
+        set
+    }
+
+    /// Draws new residuals (navigation errors, white noise) for the same returns: the
+    /// injected effects and the out-of-model term of `s` plus fresh noise from `seed`.
+    pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let z: Vec<[f64; 6]> = set
+            .visits
+            .iter()
+            .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
+            .collect();
+        for o in &mut set.observations {
+            let systematic: f64 = s
+                .truth
+                .iter()
+                .map(|&(e, x)| o.signature[signature_index(e)] * x)
+                .sum();
+            let nav: f64 = o
+                .nav_gradient
+                .iter()
+                .zip(&z[o.visit])
+                .map(|(g, z)| g * z)
+                .sum();
+            let cyclic = s.range_cyclic_m
+                * (std::f64::consts::TAU * o.covariates.range_m / RANGE_PERIOD_M).sin();
+            o.residual_m = systematic + nav + cyclic + o.var_white_m2.sqrt() * normal(&mut rng);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::synthetic::{draw, Scenario};
+    use super::*;
+
+    #[test]
+    fn validate_names_the_observation_and_field() {
+        let mut set = draw(&Scenario::default(), 1);
+        set.validate().unwrap();
+        set.observations[7].var_white_m2 = 0.0;
+        let e = set.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("observation 7") && e.contains("var_white_m2"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn effect_names_are_the_catalogue_in_order() {
+        let names: Vec<_> = Effect::ALL.iter().map(|e| e.name()).collect();
+        assert_eq!(names[0], "attitude_latency_s");
+        assert_eq!(names[14], "heading_offset_deg");
+        for (i, e) in Effect::ALL.iter().enumerate() {
+            assert_eq!(signature_index(*e), i);
+        }
+    }
 }

@@ -588,8 +588,16 @@ fn visit_nav_cov(
     let rms = [s.pos_ned_m, s.att_rph_rad];
     Ok(std::array::from_fn(|i| {
         std::array::from_fn(|j| {
-            let diag = if i == j { rms[i / 3][i % 3].powi(2) } else { 0.0 };
-            let patch = if i < 3 && j < 3 { s2 * n[i] * n[j] } else { 0.0 };
+            let diag = if i == j {
+                rms[i / 3][i % 3].powi(2)
+            } else {
+                0.0
+            };
+            let patch = if i < 3 && j < 3 {
+                s2 * n[i] * n[j]
+            } else {
+                0.0
+            };
             diag + patch
         })
     }))
