@@ -263,6 +263,13 @@ impl Normals {
         self.chi2_null() - 2.0 * b.dot(&x) + (n * &x).dot(&x)
     }
 
+    /// `theta^T S^T C^-1 S theta`: the squared Mahalanobis size of a correction.
+    pub fn quadratic(&self, effects: &[Effect], values: &[f64]) -> f64 {
+        let (n, _) = self.system(effects);
+        let x = DVector::from_column_slice(values);
+        (n * &x).dot(&x)
+    }
+
     /// GLS fit of `effects`; an error when they cannot be separated on these references.
     pub fn fit(&self, effects: &[Effect]) -> Result<Fit> {
         let (n, b) = self.system(effects);

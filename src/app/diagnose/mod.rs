@@ -2,9 +2,11 @@
 //! it, and how far the gap shrinks once that effect is added (docs/diagnosis.md).
 
 pub mod fit;
+pub mod locate;
 pub mod metrics;
 pub mod model;
 pub mod observe;
 pub mod plots;
 pub mod report;
 pub mod reprocess;
+pub mod select;

@@ -1,0 +1,340 @@
+//! Where the gap lies: the residuals binned along each covariate (quantile bins; one bin per
+//! value for `side`, `pass`, `reference_id`), one offset per bin fitted by GLS under the full
+//! per-visit covariance (so returns of one visit, which share a navigation error, are not
+//! counted as independent), and the likelihood-ratio test of those offsets against none:
+//! `b^T N^-1 b ~ chi2_B` under the model. Covariates are ranked by p-value. The same binned
+//! offsets, fitted on the fit references, are the model-free correction whose closure is
+//! judged on the held-out references.
+
+use super::fit::{total_gram, Split};
+use super::metrics::{gap_corrected, ln_chi2_sf, marginal_var_m2, Gap};
+use super::model::{Covariate, Observation, ObservationSet, Theta};
+use super::select::holm;
+use crate::{Error, Result};
+use nalgebra::{DMatrix, DVector};
+
+/// Default number of quantile bins of a continuous covariate.
+pub const DEFAULT_BINS: usize = 16;
+
+/// Bins of one covariate.
+#[derive(Debug, Clone, PartialEq)]
+struct Binning {
+    covariate: Covariate,
+    /// Continuous: lower edges of bins 1.. (ascending); bin 0 starts at `lowest`.
+    edges: Vec<f64>,
+    /// Categorical: the value of each bin.
+    values: Vec<f64>,
+    lowest: f64,
+    highest: f64,
+}
+
+impl Binning {
+    fn new(covariate: Covariate, xs: &[f64], bins: usize) -> Binning {
+        let mut sorted = xs.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        let lowest = sorted.first().copied().unwrap_or(0.0);
+        let highest = sorted.last().copied().unwrap_or(0.0);
+        if covariate.is_categorical() {
+            sorted.dedup();
+            return Binning {
+                covariate,
+                edges: Vec::new(),
+                values: sorted,
+                lowest,
+                highest,
+            };
+        }
+        let n = sorted.len();
+        let mut edges: Vec<f64> = (1..bins.max(1)).map(|k| sorted[k * n / bins]).collect();
+        edges.dedup();
+        edges.retain(|&e| e > lowest);
+        Binning {
+            covariate,
+            edges,
+            values: Vec::new(),
+            lowest,
+            highest,
+        }
+    }
+
+    fn len(&self) -> usize {
+        if self.covariate.is_categorical() {
+            self.values.len()
+        } else {
+            self.edges.len() + 1
+        }
+    }
+
+    /// The bin of `x`; continuous values beyond the ends go to the end bins, unseen
+    /// categories to none.
+    fn of(&self, x: f64) -> Option<usize> {
+        if self.covariate.is_categorical() {
+            self.values.iter().position(|&v| v == x)
+        } else {
+            Some(self.edges.partition_point(|&e| e <= x))
+        }
+    }
+
+    fn bounds(&self, b: usize) -> (f64, f64) {
+        if self.covariate.is_categorical() {
+            (self.values[b], self.values[b])
+        } else {
+            let lower = if b == 0 {
+                self.lowest
+            } else {
+                self.edges[b - 1]
+            };
+            let upper = self.edges.get(b).copied().unwrap_or(self.highest);
+            (lower, upper)
+        }
+    }
+}
+
+/// One bin of a covariate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Bin {
+    /// Lowest covariate value of the bin (the value, for a category).
+    pub lower: f64,
+    /// Upper end (exclusive except for the last bin; the value, for a category).
+    pub upper: f64,
+    /// Returns in the bin.
+    pub n: usize,
+    /// Mean of `r / sigma` over the bin's returns, sigma the marginal
+    /// `sqrt(var_white + g P g^T)`.
+    pub mean_normalised: f64,
+    /// GLS offset of the bin (m).
+    pub offset_m: f64,
+    /// Its 1-sigma (m), navigation errors shared per visit accounted for.
+    pub sigma_m: f64,
+}
+
+/// The test of one covariate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CovariateTest {
+    /// The covariate.
+    pub covariate: Covariate,
+    /// Its bins (empty bins left out).
+    pub bins: Vec<Bin>,
+    /// Likelihood-ratio statistic of the bin offsets against none: `b^T N^-1 b`.
+    pub chi2: f64,
+    /// Degrees of freedom (bins); 0 when the covariate takes one value (nothing to test).
+    pub dof: usize,
+    /// `P(chi2_dof > chi2)`.
+    pub p_value: f64,
+    /// Its natural logarithm (ranks tails below 1e-300).
+    pub ln_p_value: f64,
+}
+
+/// `r / sigma` for every observation (residual corrected by `theta` when given), sigma the
+/// marginal `sqrt(var_white + g P g^T)`.
+pub fn normalised_residuals(set: &ObservationSet, theta: Option<Theta>) -> Vec<f64> {
+    set.observations
+        .iter()
+        .map(|o| corrected(o, theta) / marginal_var_m2(set, o).sqrt())
+        .collect()
+}
+
+fn corrected(o: &Observation, theta: Option<Theta>) -> f64 {
+    theta.map_or(o.residual_m, |t| t.corrected(o))
+}
+
+fn on_refs<'a>(set: &'a ObservationSet, refs: &[usize]) -> impl Iterator<Item = &'a Observation> {
+    let mut selected = vec![false; set.reference_ids.len()];
+    for &r in refs {
+        selected[r] = true;
+    }
+    set.observations
+        .iter()
+        .filter(move |o| selected[o.reference])
+}
+
+/// Bin offsets fitted by GLS.
+struct Offsets {
+    /// Per non-empty bin: (bin index, offset (m), its sigma (m)).
+    per_bin: Vec<(usize, f64, f64)>,
+    /// Likelihood-ratio statistic `b^T N^-1 b`.
+    chi2: f64,
+}
+
+/// Bin offsets fitted by GLS on `refs`.
+fn fit_offsets(
+    set: &ObservationSet,
+    refs: &[usize],
+    binning: &Binning,
+    residual: &(dyn Fn(&Observation) -> f64 + Sync),
+) -> Result<Offsets> {
+    let nb = binning.len();
+    let cov = binning.covariate;
+    let m = total_gram(set, refs, nb + 1, &|o, out| {
+        if let Some(b) = binning.of(cov.value(&o.covariates)) {
+            out.push((b, 1.0));
+        }
+        out.push((nb, residual(o)));
+    });
+    let used: Vec<usize> = (0..nb).filter(|&b| m[(b, b)] > 0.0).collect();
+    let n = DMatrix::from_fn(used.len(), used.len(), |i, j| m[(used[i], used[j])]);
+    let rhs = DVector::from_fn(used.len(), |i, _| m[(used[i], nb)]);
+    let inv = n
+        .cholesky()
+        .map(|c| c.inverse())
+        .ok_or_else(|| Error::Numerical {
+            what: format!("binned offsets along {}", cov.name()),
+            problem: "singular normal matrix".to_string(),
+        })?;
+    let offset = &inv * &rhs;
+    let chi2 = rhs.dot(&offset);
+    let per_bin = used
+        .iter()
+        .enumerate()
+        .map(|(i, &b)| (b, offset[i], inv[(i, i)].sqrt()))
+        .collect();
+    Ok(Offsets { per_bin, chi2 })
+}
+
+/// The test of one covariate on `refs`, its bins and the offset of each bin (0 when empty).
+fn test_covariate(
+    set: &ObservationSet,
+    refs: &[usize],
+    covariate: Covariate,
+    theta: Option<Theta>,
+    bins: usize,
+) -> Result<(CovariateTest, Binning, Vec<f64>)> {
+    let xs: Vec<f64> = on_refs(set, refs)
+        .map(|o| covariate.value(&o.covariates))
+        .collect();
+    let binning = Binning::new(covariate, &xs, bins);
+    let Offsets { per_bin, chi2 } = fit_offsets(set, refs, &binning, &|o| corrected(o, theta))?;
+    let mut n = vec![0usize; binning.len()];
+    let mut sum_norm = vec![0.0; binning.len()];
+    for o in on_refs(set, refs) {
+        if let Some(b) = binning.of(covariate.value(&o.covariates)) {
+            n[b] += 1;
+            sum_norm[b] += corrected(o, theta) / marginal_var_m2(set, o).sqrt();
+        }
+    }
+    let bins_out: Vec<Bin> = per_bin
+        .iter()
+        .map(|&(b, offset_m, sigma_m)| {
+            let (lower, upper) = binning.bounds(b);
+            Bin {
+                lower,
+                upper,
+                n: n[b],
+                mean_normalised: sum_norm[b] / n[b] as f64,
+                offset_m,
+                sigma_m,
+            }
+        })
+        .collect();
+    // One bin: a constant offset, which says nothing about where along the covariate.
+    let dof = if bins_out.len() > 1 {
+        bins_out.len()
+    } else {
+        0
+    };
+    let ln_p_value = ln_chi2_sf(chi2, dof);
+    let mut offset = vec![0.0; binning.len()];
+    for &(b, x, _) in &per_bin {
+        offset[b] = x;
+    }
+    let test = CovariateTest {
+        covariate,
+        bins: bins_out,
+        chi2,
+        dof,
+        p_value: ln_p_value.exp(),
+        ln_p_value,
+    };
+    Ok((test, binning, offset))
+}
+
+/// Every covariate tested on `refs` (residuals corrected by `theta` when given), the most
+/// significant first. `bins`: quantile bins of a continuous covariate ([`DEFAULT_BINS`]).
+pub fn locate(
+    set: &ObservationSet,
+    refs: &[usize],
+    theta: Option<Theta>,
+    bins: usize,
+) -> Result<Vec<CovariateTest>> {
+    set.validate()?;
+    if on_refs(set, refs).next().is_none() {
+        return Err(Error::Numerical {
+            what: "locate".to_string(),
+            problem: "no returns on the given references".to_string(),
+        });
+    }
+    let mut tests = Covariate::ALL
+        .iter()
+        .map(|&c| test_covariate(set, refs, c, theta, bins).map(|(t, _, _)| t))
+        .collect::<Result<Vec<_>>>()?;
+    tests.sort_by(|a, b| {
+        a.ln_p_value
+            .total_cmp(&b.ln_p_value)
+            .then((b.chi2 - b.dof as f64).total_cmp(&(a.chi2 - a.dof as f64)))
+    });
+    Ok(tests)
+}
+
+/// The covariates whose test is significant under Holm control at `alpha`, in rank order.
+pub fn located_in(tests: &[CovariateTest], alpha: f64) -> Vec<Covariate> {
+    let p: Vec<f64> = tests.iter().map(|t| t.p_value).collect();
+    tests
+        .iter()
+        .zip(holm(&p, alpha))
+        .filter(|(t, s)| *s && t.dof > 0)
+        .map(|(t, _)| t.covariate)
+        .collect()
+}
+
+/// A binned offset along one covariate, fitted on the fit references, and its effect on the
+/// held-out references.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Correction {
+    /// The covariate.
+    pub covariate: Covariate,
+    /// The offsets (fit references); `offset_m` is subtracted from the residual.
+    pub bins: Vec<Bin>,
+    /// Held-out gap before the correction (after `theta` when given).
+    pub before: Gap,
+    /// Held-out gap after it. Categories absent from the fit references (e.g. held-out
+    /// `reference_id`s) are not corrected.
+    pub after: Gap,
+    /// Share of the held-out excess chi2 (`chi2 - n`) removed, when the excess is positive.
+    pub closure: Option<f64>,
+}
+
+/// The model-free correction along `covariate`: bin offsets fitted on `split.fit`, applied
+/// to `split.held_out` (residuals corrected by `theta` first, when given).
+pub fn model_free(
+    set: &ObservationSet,
+    split: &Split,
+    covariate: Covariate,
+    theta: Option<Theta>,
+    bins: usize,
+) -> Result<Correction> {
+    set.validate()?;
+    if on_refs(set, &split.fit).next().is_none() {
+        return Err(Error::Numerical {
+            what: format!("model-free correction along {}", covariate.name()),
+            problem: "no returns on the fit references".to_string(),
+        });
+    }
+    let (fitted, binning, offset) = test_covariate(set, &split.fit, covariate, theta, bins)?;
+    let before = gap_corrected(set, &split.held_out, &|o| corrected(o, theta))?;
+    let after = gap_corrected(set, &split.held_out, &|o| {
+        let shift = binning
+            .of(covariate.value(&o.covariates))
+            .map_or(0.0, |b| offset[b]);
+        corrected(o, theta) - shift
+    })?;
+    let n = before.n as f64;
+    let excess = (before.chi2_per_dof - 1.0) * n;
+    let closure = (excess > 0.0).then(|| (before.chi2_per_dof - after.chi2_per_dof) * n / excess);
+    Ok(Correction {
+        covariate,
+        bins: fitted.bins,
+        before,
+        after,
+        closure,
+    })
+}
