@@ -6,7 +6,10 @@
 //! expansion a few ns. The remainder is third order in the distance `d` from the centre, about
 //! `d^3 / R^2` times factors of order `tan^2(lat)`: below 1 um for `d` <= [`EXPANSION_RADIUS_M`]
 //! at latitudes to 80 deg and 6 deg off the central meridian (tested in `tests/geodesy_local.rs`
-//! against the exact projection). Points further away use the exact projection.
+//! against the exact projection). For the projected CRSs by EPSG code the same holds, measured
+//! <= 0.55 um over 25 CRSs of nine projection classes (Lambert conformal, transverse Mercator,
+//! oblique and polar stereographic, Albers, ...: `tests/suite/epsg_frames.rs`). Points further
+//! away use the exact projection.
 
 use super::projection::MapFrame;
 use nalgebra::{Matrix3, Vector3};

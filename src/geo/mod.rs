@@ -4,6 +4,7 @@
 //! down); `s` scanner. All angles in radians, lengths in metres.
 
 pub mod ellipsoid;
+pub mod epsg;
 pub mod local;
 pub mod projection;
 pub mod rotations;

@@ -26,6 +26,7 @@ use serde::{Deserialize, Serialize};
 use super::ellipsoid::{
     ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic, WGS84_A, WGS84_E2, WGS84_F,
 };
+use super::epsg::EpsgCrs;
 use crate::{Error, Result};
 
 /// UTM central scale factor.
@@ -92,12 +93,16 @@ const BETA: [f64; 6] = kruger_beta!(N);
 ///   500 000 m, false northing 0 (north) or 10 000 000 m (south). Height is *ellipsoidal*.
 /// - `Ecef`: WGS84 ECEF (x, y, z) in m (EPSG:4978).
 /// - `LocalEnu`: East, North, Up (m) in the tangent frame at `origin`, relative to the origin.
+/// - `Epsg`: (easting, northing) of a projected CRS in its unit, WGS84 ellipsoidal height (m)
+///   (see [`EpsgCrs`]).
 ///
 /// Serialised internally tagged, e.g. TOML `{ kind = "utm", zone = 32, north = true }`,
-/// `{ kind = "ecef" }`, `{ kind = "local_enu", origin = { lat_rad = .., lon_rad = .., h_m = .. } }`.
-/// Deserialisation validates (zone 1..=60, finite origin with |lat| <= pi/2).
+/// `{ kind = "ecef" }`, `{ kind = "local_enu", origin = { lat_rad = .., lon_rad = .., h_m = .. } }`,
+/// `{ kind = "epsg", code = 2154 }`.
+/// Deserialisation validates (zone 1..=60, finite origin with |lat| <= pi/2, a supported EPSG
+/// code).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "kind", rename_all = "snake_case", try_from = "MapFrameDef")]
+#[serde(try_from = "MapFrameDef", into = "MapFrameDef")]
 pub enum MapFrame {
     /// Universal Transverse Mercator zone `zone` (1..=60) of the northern (`north`) or southern
     /// hemisphere, with ellipsoidal height.
@@ -114,15 +119,32 @@ pub enum MapFrame {
         /// Origin of the frame; its ENU axes are the map axes.
         origin: Geodetic,
     },
+    /// A projected CRS by EPSG code, with WGS84 ellipsoidal height.
+    Epsg {
+        /// The resolved CRS (one per code and process).
+        crs: &'static EpsgCrs,
+    },
 }
 
-/// Unvalidated mirror of [`MapFrame`] used for deserialisation.
-#[derive(Deserialize)]
+/// Unvalidated mirror of [`MapFrame`] used for (de)serialisation.
+#[derive(Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 enum MapFrameDef {
     Utm { zone: u8, north: bool },
     Ecef,
     LocalEnu { origin: Geodetic },
+    Epsg { code: u32 },
+}
+
+impl From<MapFrame> for MapFrameDef {
+    fn from(f: MapFrame) -> Self {
+        match f {
+            MapFrame::Utm { zone, north } => MapFrameDef::Utm { zone, north },
+            MapFrame::Ecef => MapFrameDef::Ecef,
+            MapFrame::LocalEnu { origin } => MapFrameDef::LocalEnu { origin },
+            MapFrame::Epsg { crs } => MapFrameDef::Epsg { code: crs.code() },
+        }
+    }
 }
 
 impl TryFrom<MapFrameDef> for MapFrame {
@@ -132,6 +154,7 @@ impl TryFrom<MapFrameDef> for MapFrame {
             MapFrameDef::Utm { zone, north } => MapFrame::Utm { zone, north },
             MapFrameDef::Ecef => MapFrame::Ecef,
             MapFrameDef::LocalEnu { origin } => MapFrame::LocalEnu { origin },
+            MapFrameDef::Epsg { code } => MapFrame::from_epsg(code)?,
         };
         f.validate()?;
         Ok(f)
@@ -156,6 +179,7 @@ impl fmt::Display for MapFrame {
                 origin.lon_rad.to_degrees(),
                 origin.h_m
             ),
+            MapFrame::Epsg { crs } => f.write_str(crs.name()),
         }
     }
 }
@@ -195,6 +219,13 @@ impl MapFrame {
             }
             _ => None,
         }
+    }
+
+    /// The projected CRS EPSG `code` (see [`EpsgCrs`] for what is accepted).
+    pub fn from_epsg(code: u32) -> Result<Self> {
+        EpsgCrs::get(code)
+            .map(|crs| MapFrame::Epsg { crs })
+            .map_err(Error::Invalid)
     }
 
     /// Local ENU frame about `origin`.
@@ -241,6 +272,7 @@ impl MapFrame {
                 r_enu_to_e(origin.lat_rad, origin.lon_rad).transpose()
                     * (x_e - geodetic_to_ecef(origin))
             }
+            MapFrame::Epsg { crs } => crs.ecef_to_map(x_e),
         }
     }
 
@@ -257,6 +289,7 @@ impl MapFrame {
                     g.h_m,
                 )
             }
+            MapFrame::Epsg { crs } => crs.geodetic_to_map(g),
             _ => self.ecef_to_map(&geodetic_to_ecef(g)),
         }
     }
@@ -276,6 +309,7 @@ impl MapFrame {
                     h_m: x_m.z,
                 }
             }
+            MapFrame::Epsg { crs } => crs.map_to_geodetic(x_m),
             _ => ecef_to_geodetic(&self.map_to_ecef(x_m)),
         }
     }
@@ -288,16 +322,19 @@ impl MapFrame {
             MapFrame::LocalEnu { origin } => {
                 geodetic_to_ecef(origin) + r_enu_to_e(origin.lat_rad, origin.lon_rad) * x_m
             }
+            MapFrame::Epsg { crs } => crs.map_to_ecef(x_m),
         }
     }
 
-    /// EPSG code of the frame: 326zz (UTM north), 327zz (UTM south), 4978 (ECEF); `None` for
-    /// local ENU. The UTM codes are horizontal only: the height is ellipsoidal (WGS84).
+    /// EPSG code of the frame: 326zz (UTM north), 327zz (UTM south), 4978 (ECEF), the code of
+    /// an EPSG frame; `None` for local ENU. The projected codes are horizontal only: the height
+    /// is ellipsoidal (WGS84).
     pub fn epsg(&self) -> Option<u32> {
         match *self {
             MapFrame::Utm { zone, north } => Some(if north { 32600 } else { 32700 } + zone as u32),
             MapFrame::Ecef => Some(4978),
             MapFrame::LocalEnu { .. } => None,
+            MapFrame::Epsg { crs } => Some(crs.code()),
         }
     }
 
@@ -347,6 +384,7 @@ impl MapFrame {
                 name = self,
                 metre = METRE
             ),
+            MapFrame::Epsg { crs } => crs.wkt().to_string(),
         }
     }
 
@@ -361,6 +399,7 @@ impl MapFrame {
     ///   radii); the height axis is unchanged.
     /// - ECEF: `R_enu^e` at the point.
     /// - Local ENU: `R_e^enu(origin) * R_enu^e(point)`.
+    /// - EPSG: [`EpsgCrs::r_enu_to_grid_m`], the grid axes in metres whatever the CRS unit.
     ///
     /// Exact derivative (checked against central finite differences to 1e-8 in
     /// `tests/frames.rs`).
@@ -395,6 +434,7 @@ impl MapFrame {
                 r_enu_to_e(origin.lat_rad, origin.lon_rad).transpose()
                     * r_enu_to_e(g.lat_rad, g.lon_rad)
             }
+            MapFrame::Epsg { crs } => crs.r_enu_to_grid_m(x_e),
         }
     }
 }

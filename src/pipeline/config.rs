@@ -8,6 +8,7 @@
 //! docs/pipeline.md documents every option.
 
 use crate::geo::ellipsoid::Geodetic;
+use crate::geo::epsg::EpsgCrs;
 use crate::timing::MirrorDirection;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -340,6 +341,12 @@ pub enum FrameConfig {
         lon_deg: f64,
         /// Origin ellipsoidal height (m).
         h_m: f64,
+    },
+    /// A projected CRS by EPSG code (WGS84 or a datum with a stated Helmert to it), with
+    /// WGS84 ellipsoidal height; see `geo::epsg`.
+    Epsg {
+        /// EPSG code, e.g. 2154 (RGF93 v1 / Lambert-93).
+        code: u32,
     },
 }
 
@@ -741,6 +748,10 @@ fn validate_frame(frame: &FrameConfig, source: &str) -> Result<()> {
             }
             Ok(())
         }
+        FrameConfig::Epsg { code } => match EpsgCrs::get(code) {
+            Ok(_) => Ok(()),
+            Err(why) => bad("output.frame.code", why),
+        },
         _ => Ok(()),
     }
 }

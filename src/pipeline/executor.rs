@@ -572,6 +572,7 @@ pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
         }
         FrameConfig::Ecef => Ok(MapFrame::Ecef),
         FrameConfig::Enu { .. } => MapFrame::local_enu(f.enu_origin().expect("enu")),
+        FrameConfig::Epsg { code } => MapFrame::from_epsg(code),
     }
 }
 

@@ -575,3 +575,43 @@ fn trajectory_gaps_and_counter_wraps() {
         "{msg}"
     );
 }
+
+#[test]
+fn epsg_frame_points_come_back_to_a_tenth_of_a_millimetre() {
+    let f = fixture(3_000);
+    let path = f.dir.path().join("pipeline.toml");
+    let set = ["output.frame={ kind = \"epsg\", code = 2154 }".to_string()];
+    let report = run(&config::load(&path, &set).unwrap(), &quiet(2)).unwrap();
+    assert_eq!(report.epsg, Some(2154));
+    let frame = MapFrame::from_epsg(2154).unwrap();
+    let points = read_las(&f.dir.path().join("out/cloud.las"));
+    assert_eq!(points.len(), f.truth_e.len());
+    let mut worst: f64 = 0.0;
+    for (p, x_e) in points.iter().zip(&f.truth_e) {
+        let truth = frame.ecef_to_map(x_e);
+        common::raise_max(&mut worst, (Vector3::new(p.x, p.y, p.z) - truth).norm());
+    }
+    // Same bound and reasoning as for UTM above.
+    assert!(worst <= 1e-4, "worst 3D error {worst} m");
+    let wkt = las::Reader::from_path(f.dir.path().join("out/cloud.las"))
+        .unwrap()
+        .header()
+        .vlrs()
+        .iter()
+        .find(|v| v.record_id == 2112)
+        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+        .unwrap();
+    assert!(wkt.contains("AUTHORITY[\"EPSG\",\"2154\"]"), "{wkt}");
+    for (code, why) in [
+        (4326, "geographic"),
+        (999_999, "not a known EPSG"),
+        (26718, "shift grid"),
+    ] {
+        let set = [format!("output.frame={{ kind = \"epsg\", code = {code} }}")];
+        let err = config::load(&path, &set).unwrap_err().to_string();
+        assert!(
+            err.contains("output.frame.code") && err.contains(why),
+            "{err}"
+        );
+    }
+}
