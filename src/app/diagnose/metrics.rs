@@ -1,5 +1,6 @@
-//! Gap metrics (docs/conventions.md §8 "G") and the distribution functions the tests use
-//! (chi-square and normal tail probabilities, with logarithms for tails below 1e-300).
+//! Gap metrics (docs/conventions.md §8 "G") and the tools of the tests: chi-square and normal
+//! tail probabilities (with logarithms for tails below 1e-300) and Holm's multiple-testing
+//! control.
 
 use super::fit::{count_on, total_gram};
 use super::model::{Observation, ObservationSet, Theta};
@@ -171,10 +172,42 @@ pub fn normal_sf(z: f64) -> f64 {
     }
 }
 
+/// Holm's step-down procedure: which of `p` are rejected at family-wise error rate `alpha`.
+pub fn holm(p: &[f64], alpha: f64) -> Vec<bool> {
+    holm_adjusted(p).into_iter().map(|q| q <= alpha).collect()
+}
+
+/// Holm-adjusted p-values: `max_{j <= i} min(1, (m - j) p_(j))` over the sorted `p`; a
+/// hypothesis is rejected at family-wise level `alpha` when its adjusted p-value is <= alpha.
+pub fn holm_adjusted(p: &[f64]) -> Vec<f64> {
+    let mut order: Vec<usize> = (0..p.len()).collect();
+    order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
+    let mut adjusted = vec![1.0; p.len()];
+    let mut running: f64 = 0.0;
+    for (rank, &i) in order.iter().enumerate() {
+        running = running.max(((p.len() - rank) as f64 * p[i]).min(1.0));
+        adjusted[i] = running;
+    }
+    adjusted
+}
+
 #[cfg(test)]
 mod tests {
     use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+
+    #[test]
+    fn holm_steps_down() {
+        assert_eq!(holm(&[0.001, 0.04, 0.03], 0.05), vec![true, false, false]);
+        assert_eq!(holm(&[0.001, 0.04, 0.012], 0.05), vec![true, true, true]);
+        let q = holm_adjusted(&[0.01, 0.04, 0.03]);
+        assert!(
+            (q[0] - 0.03).abs() < 1e-15
+                && (q[1] - 0.06).abs() < 1e-15
+                && (q[2] - 0.06).abs() < 1e-15
+        );
+        assert_eq!(holm(&[0.03, 0.04], 0.05), vec![false, false]);
+    }
 
     #[test]
     fn tail_probabilities_match_tables() {

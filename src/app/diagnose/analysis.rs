@@ -1,0 +1,200 @@
+//! The statistics of one diagnosis in one call: split by reference, held-out gap, selection
+//! (observability, candidates, verdict), where the gap lies and, for an `unexplained`
+//! verdict, the model-free correction along the leading covariate (docs/diagnosis.md,
+//! "Statistics").
+
+use super::fit::{split, Split};
+use super::locate::{locate, located_in, model_free, Correction, CovariateTest};
+use super::metrics::{gap, Gap};
+use super::model::{Covariate, ObservationSet};
+use super::select::{select, Selection, Verdict};
+use crate::Result;
+
+/// Settings of [`analyse`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Settings {
+    /// Seed of the split by reference.
+    pub seed: u64,
+    /// Family-wise error rate of the tests.
+    pub alpha: f64,
+    /// Quantile bins of a continuous covariate.
+    pub bins: usize,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            seed: 0,
+            alpha: super::select::DEFAULT_ALPHA,
+            bins: super::locate::DEFAULT_BINS,
+        }
+    }
+}
+
+/// Everything the statistics conclude.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Analysis {
+    /// References fitted on and held out.
+    pub split: Split,
+    /// Held-out gap with the configured values.
+    pub before: Gap,
+    /// Held-out gap after the named explanation, computed from the observations' signatures
+    /// (a linearised prediction of the re-processed gap); `None` unless the verdict is
+    /// `effect`.
+    pub after_linear: Option<Gap>,
+    /// Observability, candidates, verdict, named effects with estimates and sigmas.
+    pub selection: Selection,
+    /// Every covariate tested on the fit references (configured values), most significant
+    /// first.
+    pub covariate_tests: Vec<CovariateTest>,
+    /// The Holm-significant covariates, in rank order (the report's `located_in`).
+    pub located_in: Vec<Covariate>,
+    /// For an `unexplained` verdict: the binned offset along the leading covariate, fitted on
+    /// the fit references, and the held-out gap after it.
+    pub model_free: Option<Correction>,
+    /// The verdict in one sentence, with its numbers.
+    pub reason: String,
+}
+
+/// Runs the statistics on `set`.
+pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
+    set.validate()?;
+    let split = split(set, settings.seed)?;
+    let before = gap(set, &split.held_out, None)?;
+    let selection = select(set, &split, settings.alpha)?;
+    let after_linear = selection
+        .correction()
+        .map(|t| gap(set, &split.held_out, Some(t)))
+        .transpose()?;
+    let covariate_tests = locate(set, &split.fit, None, settings.bins)?;
+    let located_in = located_in(&covariate_tests, settings.alpha);
+    let model_free = match selection.verdict {
+        Verdict::Unexplained => {
+            let leading = located_in
+                .first()
+                .copied()
+                .unwrap_or(covariate_tests[0].covariate);
+            Some(model_free(set, &split, leading, None, settings.bins)?)
+        }
+        _ => None,
+    };
+    let reason = reason(&selection, &located_in, model_free.as_ref());
+    Ok(Analysis {
+        split,
+        before,
+        after_linear,
+        selection,
+        covariate_tests,
+        located_in,
+        model_free,
+        reason,
+    })
+}
+
+fn percent(share: Option<f64>) -> String {
+    share.map_or("-".to_string(), |s| format!("{:.0}%", 100.0 * s))
+}
+
+/// The verdict in one sentence.
+fn reason(sel: &Selection, located: &[Covariate], correction: Option<&Correction>) -> String {
+    let null = format!(
+        "held-out chi2/dof {:.3} over {} returns (p = {:.2e})",
+        sel.null.chi2 / sel.null.n as f64,
+        sel.null.n,
+        sel.null.p_value
+    );
+    let names = |effects: &[super::model::Effect]| {
+        effects
+            .iter()
+            .map(|e| e.name())
+            .collect::<Vec<_>>()
+            .join(" + ")
+    };
+    let place = if located.is_empty() {
+        "no covariate holds it significantly".to_string()
+    } else {
+        format!(
+            "it lies along {}",
+            located
+                .iter()
+                .map(|c| c.name())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    };
+    match sel.verdict {
+        Verdict::None => format!(
+            "the survey agrees with its model: {null}, and no catalogue effect is significant at {}",
+            sel.alpha
+        ),
+        Verdict::Effect => format!(
+            "{} explains the gap: {null}; it removes {} of the held-out excess chi2",
+            names(&sel.effects),
+            percent(sel.closure)
+        ),
+        Verdict::Unexplained => {
+            let partial = sel.chosen.as_ref().map_or(
+                "no catalogue effect is significant on both halves".to_string(),
+                |f| {
+                    format!(
+                        "the best catalogue explanation ({}) removes only {} of the held-out excess chi2",
+                        names(&f.effects),
+                        percent(sel.closure)
+                    )
+                },
+            );
+            let fix = correction.map_or(String::new(), |c| {
+                format!(
+                    "; a binned offset along {} closes {} on the held-out references",
+                    c.covariate.name(),
+                    percent(c.closure)
+                )
+            });
+            format!("the survey departs from its model ({null}) and {partial}; {place}{fix}")
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::model::synthetic::{draw, fill_residuals, Scenario};
+    use super::super::model::Effect;
+    use super::*;
+
+    #[test]
+    fn analysis_names_locates_and_explains() {
+        let mut set = draw(&Scenario::default(), 4);
+        let s = Scenario {
+            truth: vec![(Effect::BoresightY, 0.02)],
+            ..Default::default()
+        };
+        fill_residuals(&mut set, &s, 40);
+        let a = analyse(&set, &Settings::default()).unwrap();
+        assert_eq!(a.selection.verdict, Verdict::Effect, "{}", a.reason);
+        assert_eq!(a.selection.effects, vec![Effect::BoresightY]);
+        let after = a.after_linear.unwrap();
+        // The correction leaves only its estimation error: chi2/dof within 4 sd of 1.
+        assert!((after.chi2_per_dof - 1.0).abs() < 4.0 * (2.0 / after.n as f64).sqrt());
+        assert!(a.before.chi2_per_dof > 1.5, "{:?}", a.before);
+        assert!(
+            a.reason.contains("boresight_y_deg explains"),
+            "{}",
+            a.reason
+        );
+        assert!(a.model_free.is_none());
+
+        let set = draw(
+            &Scenario {
+                range_cyclic_m: 0.02,
+                ..Default::default()
+            },
+            4,
+        );
+        let a = analyse(&set, &Settings::default()).unwrap();
+        assert_eq!(a.selection.verdict, Verdict::Unexplained, "{}", a.reason);
+        assert_eq!(a.located_in, vec![Covariate::RangeM], "{}", a.reason);
+        let c = a.model_free.as_ref().unwrap();
+        assert!(c.closure.unwrap() >= 0.5, "{}", a.reason);
+        assert!(a.reason.contains("along range_m"), "{}", a.reason);
+    }
+}
