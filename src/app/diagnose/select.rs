@@ -561,21 +561,26 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
 }
 
 /// Every member of the chosen groups with its estimate and sigma (a non-preferred member
-/// fitted in place of the preferred one).
+/// fitted in place of the preferred one, or alone when that is singular).
 fn named(cx: &Context, chosen: &Candidate) -> Result<(Vec<Effect>, Vec<f64>, Vec<f64>)> {
     let (mut effects, mut estimate, mut sigma) = (Vec::new(), Vec::new(), Vec::new());
     for (slot, &g) in chosen.groups.iter().enumerate() {
         for (m, &member) in cx.groups[g].members.iter().enumerate() {
-            let fit = if m == 0 {
-                chosen.fit.clone()
+            // A member that cannot stand in for the preferred one beside the other groups
+            // (singular together) is estimated alone.
+            let (fit, at) = if m == 0 {
+                (chosen.fit.clone(), slot)
             } else {
                 let mut with = chosen.fit.effects.clone();
                 with[slot] = member;
-                cx.fit.fit(&with)?
+                match cx.fit.fit(&with) {
+                    Ok(f) => (f, slot),
+                    Err(_) => (cx.fit.fit(&[member])?, 0),
+                }
             };
             effects.push(member);
-            estimate.push(fit.estimate[slot]);
-            sigma.push(fit.sigma[slot]);
+            estimate.push(fit.estimate[at]);
+            sigma.push(fit.sigma[at]);
         }
     }
     Ok((effects, estimate, sigma))
@@ -665,6 +670,25 @@ mod tests {
         // 90 draws: the sample sd has sd 1/sqrt(180) = 0.075; the mean has sd 0.105.
         assert!((0.8..=1.25).contains(&std), "std {std}");
         assert!(mean.abs() < 0.32, "mean {mean}");
+    }
+
+    #[test]
+    fn an_effect_without_signature_is_unobservable_and_never_named() {
+        let mut set = draw(
+            &Scenario {
+                range_cyclic_m: 0.02,
+                ..Default::default()
+            },
+            8,
+        );
+        for o in &mut set.observations {
+            o.signature = [0.0; N_EFFECTS];
+        }
+        let sel = select(&set, &split(&set, 8).unwrap(), DEFAULT_ALPHA).unwrap();
+        assert_eq!(sel.observability.unobservable, Effect::ALL.to_vec());
+        assert!(sel.observability.groups.is_empty() && sel.candidates.is_empty());
+        assert_eq!(sel.verdict, Verdict::Unexplained);
+        assert!(sel.effects.is_empty());
     }
 
     #[test]
