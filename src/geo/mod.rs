@@ -5,6 +5,8 @@
 
 pub mod ellipsoid;
 pub mod epsg;
+pub mod geoid;
+mod geoid_tiff;
 pub mod local;
 pub mod projection;
 pub mod rotations;

@@ -17,6 +17,7 @@ mod frames;
 mod fuzz;
 mod geodesy;
 mod geodesy_local;
+mod geoid;
 mod io_bad_input;
 mod io_info;
 mod io_profiles_csv;
