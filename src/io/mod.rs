@@ -4,6 +4,7 @@ pub mod atomic;
 mod csv_text;
 pub mod info;
 pub mod las;
+pub mod laz;
 pub mod mapped;
 pub mod patches;
 pub mod paths;

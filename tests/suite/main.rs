@@ -22,6 +22,7 @@ mod io_bad_input;
 mod io_info;
 mod io_profiles_csv;
 mod las_roundtrip;
+mod laz_output;
 mod pipeline_roundtrip;
 mod pipelines;
 mod realdata;
