@@ -2,6 +2,7 @@
 //! `kinescan::Error`.
 
 mod calib_cmds;
+mod diagnose_cmd;
 mod pipeline_cmds;
 mod sensitivity_cmd;
 mod sim_cmds;
@@ -30,6 +31,7 @@ enum Command {
     Simulate(sim_cmds::SimulateArgs),
     Demo(sim_cmds::DemoArgs),
     Sensitivity(sensitivity_cmd::SensitivityArgs),
+    Diagnose(diagnose_cmd::DiagnoseArgs),
 }
 
 /// The error and its causes joined by `: `, leaving out a cause whose text is already in the
@@ -70,6 +72,7 @@ pub fn run() -> ExitCode {
         Command::Simulate(a) => sim_cmds::simulate(a, cli.quiet),
         Command::Demo(a) => sim_cmds::demo(a, cli.quiet),
         Command::Sensitivity(a) => sensitivity_cmd::sensitivity(a, cli.quiet),
+        Command::Diagnose(a) => diagnose_cmd::diagnose(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

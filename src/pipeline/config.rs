@@ -66,6 +66,13 @@ pub struct DiagnoseConfig {
     /// A visit longer than this is split (s): one visit shares one navigation error.
     #[serde(default = "default_max_visit_s")]
     pub max_visit_s: f64,
+    /// Correlation time of the INS position errors (s): their drift within a visit is added
+    /// to each return's independent variance.
+    #[serde(default = "default_nav_position_tau_s")]
+    pub nav_position_tau_s: f64,
+    /// Correlation time of the INS attitude errors (s).
+    #[serde(default = "default_nav_attitude_tau_s")]
+    pub nav_attitude_tau_s: f64,
     /// Visits with fewer returns are left out.
     #[serde(default = "default_min_per_visit")]
     pub min_per_visit: usize,
@@ -97,6 +104,12 @@ fn default_visit_gap_s() -> f64 {
 }
 fn default_max_visit_s() -> f64 {
     5.0
+}
+fn default_nav_position_tau_s() -> f64 {
+    60.0
+}
+fn default_nav_attitude_tau_s() -> f64 {
+    30.0
 }
 fn default_min_per_visit() -> usize {
     20
@@ -803,6 +816,8 @@ fn validate_diagnose(d: &DiagnoseConfig, source: &str) -> Result<()> {
         ("diagnose.plane_tolerance_m", d.plane_tolerance_m),
         ("diagnose.visit_gap_s", d.visit_gap_s),
         ("diagnose.max_visit_s", d.max_visit_s),
+        ("diagnose.nav_position_tau_s", d.nav_position_tau_s),
+        ("diagnose.nav_attitude_tau_s", d.nav_attitude_tau_s),
     ];
     for (key, v) in positive {
         if !(v.is_finite() && v > 0.0) {

@@ -12,6 +12,7 @@ mod calib_sphere;
 mod calib_tripod_scans;
 mod cli;
 mod diagnose;
+mod diagnose_acceptance;
 mod epsg_frames;
 mod frames;
 mod fuzz;

@@ -1,5 +1,10 @@
 //! `kinescan diagnose`: where a survey departs from its model, which catalogue effect causes
 //! it, and how far the gap shrinks once that effect is added (docs/diagnosis.md).
+//!
+//! Data flow: [`observe`] (returns on reference patches -> observations) -> the statistics
+//! (split by reference, observability, selection, location, model-free correction) ->
+//! [`reprocess`] (the chosen effects added to the pipeline, the held-out references observed
+//! again) -> [`report`] and [`plots`] (diagnosis.json, summary.md, PNGs, corrected.toml).
 
 pub mod analysis;
 pub mod fit;
@@ -11,3 +16,329 @@ pub mod plots;
 pub mod report;
 pub mod reprocess;
 pub mod select;
+
+use crate::io::patches::read_patches;
+use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
+use crate::{Error, Result};
+use std::path::PathBuf;
+
+/// What to diagnose against and where to write.
+#[derive(Debug, Clone)]
+pub struct Request {
+    /// Reference planar patches (patch CSV).
+    pub patches: PathBuf,
+    /// Output folder (created if missing).
+    pub out_dir: PathBuf,
+}
+
+/// What the statistics conclude on one observation set (the seam between the statistics and
+/// the report).
+struct Statistics {
+    /// Reference indices fitted on and held out.
+    fit: Vec<usize>,
+    held_out: Vec<usize>,
+    verdict: report::Verdict,
+    /// Named effects: (effect, estimate, sigma), the re-processed ones first.
+    named: Vec<(model::Effect, f64, f64)>,
+    /// The effects re-processed with (a group's preferred member, or a combination).
+    applied: Vec<(model::Effect, f64)>,
+    reason: String,
+    before: report::GapMetrics,
+    observability: report::ObservabilityReport,
+    groups: Vec<report::GroupReport>,
+    candidates: Vec<report::CandidateReport>,
+    covariate_tests: Vec<report::CovariateReport>,
+    /// Covariates where the gap lies (Holm-significant tests), in rank order.
+    located_in: Vec<String>,
+    /// The model-free correction and the held-out gap after it.
+    model_free: Option<(report::ModelFreeReport, report::GapMetrics)>,
+    /// Normalised residual of every observation under the null model.
+    normalised: Vec<f64>,
+}
+
+/// Covariates shown in plots (the leading ones of the tests).
+const PLOTTED_COVARIATES: usize = 3;
+
+/// Diagnoses pipeline `p` against the reference patches of `req`; writes the report files
+/// into `req.out_dir` and returns the report.
+pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
+    observe::check_pipeline(p)?;
+    let cfg = p.config.diagnose.clone().unwrap_or_default();
+    check_collisions(p, req)?;
+    let patches = read_patches(&req.patches)?;
+    let observed = observe::observe(p, &patches, &req.patches, &cfg)?;
+    let set = &observed.set;
+    let stats = statistics(set, &cfg)?;
+    std::fs::create_dir_all(&req.out_dir).map_err(|e| Error::io(&req.out_dir, e))?;
+    let ids = |refs: &[usize]| -> Vec<String> {
+        refs.iter().map(|&r| set.reference_ids[r].clone()).collect()
+    };
+    let held_out_ids = ids(&stats.held_out);
+    let before_normalised = held_out_values(set, &stats.held_out, &stats.normalised);
+    let (set_lines, after, after_normalised) = match (&stats.verdict, &stats.model_free) {
+        (report::Verdict::Effect, _) => {
+            let lines = reprocess::set_lines(&p.config, &stats.applied)?;
+            let corrected = reprocess::corrected(p, &lines, &req.out_dir)?;
+            let again = observe::observe(&corrected, &patches, &req.patches, &cfg)?;
+            let held = references_of(&again.set, &held_out_ids);
+            let (after, normalised) = gap_of(&again.set, &held)?;
+            reprocess::write_pipeline(
+                &corrected.config,
+                &p.path,
+                &lines,
+                &req.out_dir.join(reprocess::CORRECTED_PIPELINE),
+            )?;
+            (lines, after, normalised)
+        }
+        (_, Some((_, after))) => (Vec::new(), *after, Vec::new()),
+        _ => (Vec::new(), stats.before, Vec::new()),
+    };
+    let mut plot_files = Vec::new();
+    for t in stats.covariate_tests.iter().take(PLOTTED_COVARIATES) {
+        let Some(c) = model::Covariate::ALL
+            .iter()
+            .find(|c| c.name() == t.covariate)
+        else {
+            continue;
+        };
+        let points: Vec<(f64, f64)> = set
+            .observations
+            .iter()
+            .zip(&stats.normalised)
+            .map(|(o, &z)| (c.value(&o.covariates), z))
+            .collect();
+        let plot = plots::covariate_plot(&t.covariate, &points, &t.bins);
+        let file = format!("residuals_{}.png", t.covariate);
+        plot_files.push(plots::write_png(&plot, &req.out_dir, &file)?);
+    }
+    if !after_normalised.is_empty() {
+        let plot = plots::before_after_plot(&before_normalised, &after_normalised);
+        plot_files.push(plots::write_png(&plot, &req.out_dir, "before_after.png")?);
+    }
+    let d = report::Diagnosis {
+        verdict: stats.verdict,
+        effects: stats
+            .named
+            .iter()
+            .map(|(e, _, _)| e.name().to_string())
+            .collect(),
+        estimate: stats
+            .named
+            .iter()
+            .map(|(e, x, _)| (e.name().to_string(), *x))
+            .collect(),
+        sigma: stats
+            .named
+            .iter()
+            .map(|(e, _, s)| (e.name().to_string(), *s))
+            .collect(),
+        located_in: stats.located_in,
+        gap: report::GapBeforeAfter {
+            before: stats.before,
+            after,
+        },
+        set: set_lines,
+        reason: stats.reason,
+        split: report::SplitReport {
+            seed: cfg.seed,
+            fit: ids(&stats.fit),
+            held_out: held_out_ids,
+        },
+        observability: stats.observability,
+        groups: stats.groups,
+        candidates: stats.candidates,
+        covariate_tests: stats.covariate_tests,
+        model_free: stats.model_free.map(|(m, _)| m),
+        counts: observed.counts,
+        plots: plot_files,
+    };
+    d.write(&req.out_dir, &p.path)?;
+    Ok(d)
+}
+
+/// The indices of reference ids `ids` in `set` (ids without observations there are skipped).
+fn references_of(set: &model::ObservationSet, ids: &[String]) -> Vec<usize> {
+    ids.iter()
+        .filter_map(|id| set.reference_ids.iter().position(|r| r == id))
+        .collect()
+}
+
+/// `values` of the observations on `refs`.
+fn held_out_values(set: &model::ObservationSet, refs: &[usize], values: &[f64]) -> Vec<f64> {
+    set.observations
+        .iter()
+        .zip(values)
+        .filter(|(o, _)| refs.contains(&o.reference))
+        .map(|(_, &v)| v)
+        .collect()
+}
+
+/// Refuses outputs that would overwrite an input (or each other) before any work.
+fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
+    let mut inputs = crate::pipeline::files::inputs(p);
+    inputs.push(("--patches".into(), req.patches.clone()));
+    let names = [
+        report::DIAGNOSIS_JSON,
+        report::SUMMARY_MD,
+        reprocess::CORRECTED_PIPELINE,
+        reprocess::CORRECTED_LAS,
+    ];
+    crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(&req.out_dir, &names))
+}
+
+/// Runs the statistics on `set`: split by reference, selection (observability, candidates,
+/// verdict), gap before, location of the gap and, for `unexplained`, the model-free
+/// correction along the leading covariate.
+fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Statistics> {
+    let split = fit::split(set, cfg.seed)?;
+    let sel = select::select(set, &split, cfg.alpha)?;
+    let before = metrics::gap(set, &split.held_out, None)?;
+    let all = set.observed_references();
+    let tests = locate::locate(set, &all, None, locate::DEFAULT_BINS)?;
+    let located = locate::located_in(&tests, cfg.alpha);
+    let model_free = match (sel.verdict, located.first()) {
+        (select::Verdict::Unexplained, Some(&c)) => {
+            let m = locate::model_free(set, &split, c, None, locate::DEFAULT_BINS)?;
+            let r = report::ModelFreeReport {
+                covariate: c.name().into(),
+                bins: m.bins.iter().map(|b| bin_report(b, b.offset_m)).collect(),
+                closed_fraction: m.closure.unwrap_or(0.0),
+            };
+            Some((r, gap_metrics(&m.after)))
+        }
+        _ => None,
+    };
+    let obs = &sel.observability;
+    let named: Vec<(model::Effect, f64, f64)> = sel
+        .effects
+        .iter()
+        .zip(sel.estimate.iter().zip(&sel.sigma))
+        .map(|(&e, (&x, &s))| (e, x, s))
+        .collect();
+    let applied = match (&sel.chosen, sel.verdict) {
+        (Some(f), select::Verdict::Effect) => f
+            .effects
+            .iter()
+            .copied()
+            .zip(f.estimate.iter().copied())
+            .collect(),
+        _ => Vec::new(),
+    };
+    Ok(Statistics {
+        reason: reason(&sel, &before),
+        fit: split.fit.clone(),
+        held_out: split.held_out.clone(),
+        verdict: match sel.verdict {
+            select::Verdict::Effect => report::Verdict::Effect,
+            select::Verdict::None => report::Verdict::None,
+            select::Verdict::Unexplained => report::Verdict::Unexplained,
+        },
+        named,
+        applied,
+        before: gap_metrics(&before),
+        observability: report::ObservabilityReport {
+            condition_number: obs.condition_number,
+            effects: obs
+                .effects
+                .iter()
+                .zip(&obs.vif)
+                .map(|(e, &vif)| report::ObservabilityRow {
+                    effect: e.name().into(),
+                    vif,
+                })
+                .collect(),
+            unobservable: obs
+                .unobservable
+                .iter()
+                .map(|e| e.name().to_string())
+                .collect(),
+        },
+        groups: obs
+            .groups
+            .iter()
+            .filter(|g| g.members.len() > 1)
+            .map(|g| report::GroupReport {
+                members: g.members.iter().map(|e| e.name().to_string()).collect(),
+                hint: g.separating_data.join("; "),
+            })
+            .collect(),
+        candidates: sel
+            .candidates
+            .iter()
+            .map(|c| report::CandidateReport {
+                effects: c.fit.effects.iter().map(|e| e.name().to_string()).collect(),
+                estimate: c.fit.estimate.clone(),
+                sigma: c.fit.sigma.clone(),
+                held_out_chi2_reduction: c.held_out_reduction,
+                p_value: c.p_value,
+                held_out_p_value: c.held_out_p_value,
+                significant: c.significant,
+            })
+            .collect(),
+        covariate_tests: tests
+            .iter()
+            .map(|t| report::CovariateReport {
+                covariate: t.covariate.name().into(),
+                p_value: t.p_value,
+                bins: t
+                    .bins
+                    .iter()
+                    .map(|b| bin_report(b, b.mean_normalised))
+                    .collect(),
+            })
+            .collect(),
+        located_in: located.iter().map(|c| c.name().to_string()).collect(),
+        model_free,
+        normalised: locate::normalised_residuals(set, None),
+    })
+}
+
+/// The held-out gap of a re-processed set and its normalised residuals there.
+fn gap_of(set: &model::ObservationSet, refs: &[usize]) -> Result<(report::GapMetrics, Vec<f64>)> {
+    let g = metrics::gap(set, refs, None)?;
+    let z = locate::normalised_residuals(set, None);
+    Ok((gap_metrics(&g), held_out_values(set, refs, &z)))
+}
+
+fn gap_metrics(g: &metrics::Gap) -> report::GapMetrics {
+    report::GapMetrics {
+        chi2_per_dof: g.chi2_per_dof,
+        rms_m: g.rms_m,
+        mean_m: g.mean_m,
+        coverage_95: g.coverage_95,
+        n: g.n,
+    }
+}
+
+fn bin_report(b: &locate::Bin, value: f64) -> report::BinReport {
+    report::BinReport {
+        range: [b.lower, b.upper],
+        n: b.n,
+        mean: value,
+    }
+}
+
+/// One sentence on why the verdict.
+fn reason(sel: &select::Selection, before: &metrics::Gap) -> String {
+    let null = &sel.null;
+    let held = format!(
+        "held-out chi2/dof {:.2} over {} returns (p = {:.1e} under the model without effects)",
+        before.chi2_per_dof, null.n, null.p_value
+    );
+    match sel.verdict {
+        select::Verdict::Effect => format!(
+            "The named explanation is significant on the fit references at family-wise level \
+             {} (Holm) and confirmed on the held-out references; {held}.",
+            sel.alpha
+        ),
+        select::Verdict::None => format!(
+            "The model holds on the held-out references and no catalogue effect is significant \
+             at family-wise level {} (Holm); {held}.",
+            sel.alpha
+        ),
+        select::Verdict::Unexplained => format!(
+            "The model is rejected on the held-out references and no catalogue effect or \
+             combination closes the gap significantly; {held}."
+        ),
+    }
+}

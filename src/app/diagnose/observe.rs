@@ -163,6 +163,8 @@ struct ReturnModel<'a> {
     position_latency_s: f64,
     range_limits_m: (f64, f64),
     white: WhiteSigmas,
+    /// Correlation times of the INS position and attitude errors (s).
+    nav_tau_s: [f64; 2],
 }
 
 /// The scanner noise sigmas (`[uncertainty]`) that make the white part of a residual's
@@ -208,6 +210,13 @@ impl<'a> ReturnModel<'a> {
             attitude_latency_s: c.latency.attitude_s,
             position_latency_s: c.latency.position_s,
             range_limits_m: (c.sensor.min_range_m, c.sensor.max_range_m),
+            nav_tau_s: c.diagnose.as_ref().map_or_else(
+                || {
+                    let d = DiagnoseConfig::default();
+                    [d.nav_position_tau_s, d.nav_attitude_tau_s]
+                },
+                |d| [d.nav_position_tau_s, d.nav_attitude_tau_s],
+            ),
             white: c.uncertainty.as_ref().map_or(
                 WhiteSigmas {
                     alpha_rad: 0.0,
@@ -545,6 +554,10 @@ fn observe_visit(
     reference: usize,
 ) -> Result<(Visit, Vec<Observation>)> {
     let frame = &index.frames[pv.patch];
+    let (t_first, t_last) = (pv.hits[0].t_s, pv.hits[pv.hits.len() - 1].t_s);
+    let (t_mid, half_s) = (0.5 * (t_first + t_last), 0.5 * (t_last - t_first));
+    let (nav_cov, nav_var) = visit_nav_cov(model.traj, t_mid, frame)
+        .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
     let mut cursor = model.cursor();
     let mut obs = Vec::with_capacity(pv.hits.len());
     for h in &pv.hits {
@@ -561,11 +574,11 @@ fn observe_visit(
             pass: pv.pass,
             ..covariates(&loc, model, frame, &r)
         };
-        obs.push(observation(&loc, model, frame, &r, (reference, visit), cov));
+        let mut o = observation(&loc, model, frame, &r, (reference, visit), cov);
+        o.var_white_m2 +=
+            drift_variance_m2(&o.nav_gradient, &nav_var, loc.t_s - t_mid, half_s, model);
+        obs.push(o);
     }
-    let (t_first, t_last) = (pv.hits[0].t_s, pv.hits[pv.hits.len() - 1].t_s);
-    let nav_cov = visit_nav_cov(model.traj, 0.5 * (t_first + t_last), frame)
-        .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
     let v = Visit {
         reference,
         pass: pv.pass,
@@ -574,25 +587,49 @@ fn observe_visit(
     Ok((v, obs))
 }
 
+/// Variance (m^2) of the navigation error's drift within a visit at `u` seconds from its mid
+/// time, `half_s` its half duration, along a return's navigation gradient `g`. Each error is a
+/// first-order Gauss-Markov process (correlation times `diagnose.nav_position_tau_s`,
+/// `diagnose.nav_attitude_tau_s`): over a visit, a random walk of diffusion
+/// `q = 2 sigma^2 / tau`. Its deviation from the visit's mean (the visit's shared error absorbs
+/// the mean) has variance `q (u^2 / (2 h) + h / 6)`. Added to the independent variance.
+fn drift_variance_m2(
+    g: &[f64; 6],
+    nav_var: &[f64; 6],
+    u: f64,
+    half_s: f64,
+    model: &ReturnModel,
+) -> f64 {
+    if half_s <= 0.0 {
+        return 0.0;
+    }
+    let shape = u * u / (2.0 * half_s) + half_s / 6.0;
+    (0..6)
+        .map(|k| g[k] * g[k] * 2.0 * nav_var[k] / model.nav_tau_s[k / 3] * shape)
+        .sum()
+}
+
 /// `P_v`: SMRMSG variances at `t_mid` plus the patch's survey variance along its normal
 /// (a plane offset along `n` is indistinguishable from an INS position error along `n`).
 fn visit_nav_cov(
     traj: &Trajectory,
     t_mid: f64,
     frame: &PatchFrame,
-) -> Result<[[f64; 6]; 6], RejectReason> {
+) -> Result<([[f64; 6]; 6], [f64; 6]), RejectReason> {
     let mut cursor = traj.sigma_cursor().ok_or(RejectReason::OutsideAccuracy)?;
     let s = cursor.at(t_mid).map_err(RejectReason::from)?;
+    let nav_var: [f64; 6] = std::array::from_fn(|k| {
+        if k < 3 {
+            s.pos_ned_m[k].powi(2)
+        } else {
+            s.att_rph_rad[k - 3].powi(2)
+        }
+    });
     let s2 = frame.sigma_m.powi(2);
     let n = &frame.normal_n;
-    let rms = [s.pos_ned_m, s.att_rph_rad];
-    Ok(std::array::from_fn(|i| {
+    let p = std::array::from_fn(|i| {
         std::array::from_fn(|j| {
-            let diag = if i == j {
-                rms[i / 3][i % 3].powi(2)
-            } else {
-                0.0
-            };
+            let diag = if i == j { nav_var[i] } else { 0.0 };
             let patch = if i < 3 && j < 3 {
                 s2 * n[i] * n[j]
             } else {
@@ -600,7 +637,8 @@ fn visit_nav_cov(
             };
             diag + patch
         })
-    }))
+    });
+    Ok((p, nav_var))
 }
 
 /// Where and how a return was measured (`reference_id` and `pass` are set by the caller).

@@ -2,7 +2,6 @@
 //! writer: normalised residuals against the leading covariates, and the held-out normalised
 //! residuals before and after the correction.
 
-use super::model::{Covariates, Side};
 use super::report::BinReport;
 use crate::io::atomic::write_atomic;
 use crate::plot::Plot;
@@ -14,28 +13,6 @@ use std::path::Path;
 const MAX_SCATTER: usize = 4000;
 /// Image size (px).
 const SIZE: (u32, u32) = (900, 560);
-
-/// The value of covariate `name` (docs/conventions.md §8 names; `side` is 0 left, 1 right).
-pub fn covariate_value(c: &Covariates, name: &str) -> Option<f64> {
-    Some(match name {
-        "time_s" => c.time_s,
-        "range_m" => c.range_m,
-        "beta_deg" => c.beta_deg,
-        "incidence_deg" => c.incidence_deg,
-        "speed_mps" => c.speed_mps,
-        "yaw_rate_dps" => c.yaw_rate_dps,
-        "roll_rate_dps" => c.roll_rate_dps,
-        "pitch_rate_dps" => c.pitch_rate_dps,
-        "heading_deg" => c.heading_deg,
-        "side" => match c.side {
-            Side::Left => 0.0,
-            Side::Right => 1.0,
-        },
-        "pass" => c.pass as f64,
-        "reference_id" => c.reference_id as f64,
-        _ => return None,
-    })
-}
 
 /// Normalised residuals against one covariate, with the bin means of its test.
 pub fn covariate_plot(name: &str, points: &[(f64, f64)], bins: &[BinReport]) -> Plot {

@@ -67,6 +67,8 @@ pub struct ObservabilityReport {
     pub condition_number: f64,
     /// Per effect.
     pub effects: Vec<ObservabilityRow>,
+    /// Effects without any signature on these references.
+    pub unobservable: Vec<String>,
 }
 
 /// Effects the data cannot separate (|correlation| > 0.9).
@@ -89,11 +91,11 @@ pub struct CandidateReport {
     pub sigma: Vec<f64>,
     /// Chi-square reduction on the held-out split.
     pub held_out_chi2_reduction: f64,
-    /// p-value of the likelihood-ratio test.
+    /// p-value of the likelihood-ratio test on the fit split.
     pub p_value: f64,
-    /// Holm-adjusted p-value.
-    pub p_holm: f64,
-    /// Significant at the family-wise level.
+    /// One-sided p-value of the held-out score along the correction.
+    pub held_out_p_value: f64,
+    /// Significant under Holm control at the family-wise level.
     pub significant: bool,
 }
 
@@ -256,7 +258,7 @@ impl Diagnosis {
         }
         if !self.set.is_empty() {
             let _ = writeln!(s, "## Re-run with the correction\n\n```");
-            let sets: Vec<String> = self.set.iter().map(|l| format!("--set {l}")).collect();
+            let sets: Vec<String> = self.set.iter().map(|l| format!("--set '{l}'")).collect();
             let _ = writeln!(s, "kinescan run {} {}", pipeline.display(), sets.join(" "));
             let _ = writeln!(
                 s,

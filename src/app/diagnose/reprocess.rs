@@ -154,3 +154,72 @@ pub fn write_pipeline(
     text.push_str(&body);
     write_atomic(path, text.as_bytes())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PIPELINE: &str = r#"
+[inputs]
+sbet = "survey/trajectory.sbet"
+smrmsg = "survey/trajectory.smrmsg"
+profiles = ["survey/profiles.bin"]
+[sensor]
+lever_arm_b_m = [-0.6, 0.0, -0.5]
+boresight_deg = [0.1, 0.0, 0.0]
+[time]
+t0_s = 345601.0
+period_s = 0.01
+[output]
+las = "out/x.las"
+"#;
+
+    fn loaded(dir: &Path) -> LoadedPipeline {
+        let path = dir.join("p.toml");
+        std::fs::write(&path, PIPELINE).unwrap();
+        config::load(&path, &["latency.attitude_s=0.001".into()]).unwrap()
+    }
+
+    #[test]
+    fn set_lines_add_the_estimates_to_the_configured_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = loaded(dir.path());
+        let est = [
+            (Effect::LeverArmY, 0.03),
+            (Effect::BoresightX, -0.05),
+            (Effect::LeverArmZ, 0.01),
+            (Effect::AttitudeLatency, 0.002),
+            (Effect::ClockDrift, 100.0),
+        ];
+        let lines = set_lines(&p.config, &est).unwrap();
+        assert_eq!(
+            lines,
+            [
+                "latency.attitude_s=0.003",
+                "sensor.boresight_deg=[0.05, 0.0, 0.0]",
+                "sensor.lever_arm_b_m=[-0.6, 0.03, -0.49]",
+                "time.period_s=0.010001",
+            ]
+        );
+    }
+
+    #[test]
+    fn the_corrected_pipeline_file_loads_to_the_corrected_configuration() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = loaded(dir.path());
+        let lines = set_lines(&p.config, &[(Effect::RangeZero, 0.02)]).unwrap();
+        let out = dir.path().join("diag");
+        std::fs::create_dir_all(&out).unwrap();
+        let c = corrected(&p, &lines, &out).unwrap();
+        assert_eq!(c.config.sensor.range_zero_m, 0.02);
+        assert_eq!(
+            c.config.latency.attitude_s, 0.001,
+            "the run's own overrides are kept"
+        );
+        let path = out.join(CORRECTED_PIPELINE);
+        write_pipeline(&c.config, &p.path, &lines, &path).unwrap();
+        let again = config::load(&path, &[]).unwrap();
+        assert_eq!(again.config, c.config);
+        assert_eq!(again.config.output.las, out.join(CORRECTED_LAS));
+    }
+}

@@ -1,0 +1,32 @@
+#!/usr/bin/env python3
+"""Checks a `kinescan diagnose` output folder: diagnosis.json has exactly the schema fields of
+docs/conventions.md §8 (then the documented extras), summary.md and the listed plots exist, and
+the corrected pipeline (verdict "effect") is a file `kinescan run` accepts (checked by
+`kinescan validate`)."""
+import json
+import pathlib
+import subprocess
+import sys
+
+SCHEMA = ["verdict", "effects", "estimate", "sigma", "located_in", "gap", "set"]
+GAP = {"chi2_per_dof", "rms_m", "mean_m", "coverage_95", "n"}
+
+out = pathlib.Path(sys.argv[1])
+d = json.loads((out / "diagnosis.json").read_text())
+assert list(d)[: len(SCHEMA)] == SCHEMA, f"schema fields first, in order: {list(d)}"
+assert d["verdict"] in ("effect", "none", "unexplained"), d["verdict"]
+for when in ("before", "after"):
+    assert set(d["gap"][when]) == GAP, d["gap"][when]
+assert set(d["estimate"]) == set(d["effects"]) == set(d["sigma"]), d
+if d["verdict"] != "effect":
+    assert d["effects"] == [] and d["set"] == [], d
+assert (out / "summary.md").read_text().startswith("# Diagnosis of ")
+for png in d["plots"]:
+    assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png
+if d["verdict"] == "effect":
+    subprocess.run(
+        ["cargo", "run", "--release", "--locked", "-q", "--", "validate", str(out / "corrected.toml")],
+        check=True,
+    )
+print(f"diagnosis.json: verdict {d['verdict']} {d['effects']}, gap chi2/dof "
+      f"{d['gap']['before']['chi2_per_dof']:.2f} -> {d['gap']['after']['chi2_per_dof']:.2f}")
