@@ -186,48 +186,40 @@ fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
     crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(&req.out_dir, &names))
 }
 
-/// Runs the statistics on `set`: split by reference, selection (observability, candidates,
-/// verdict), gap before, location of the gap and, for `unexplained`, the model-free
-/// correction along the leading covariate.
+/// Runs the statistics on `set` ([`analysis::analyse`]) and keeps what the report needs.
 fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Statistics> {
-    let split = fit::split(set, cfg.seed)?;
-    let sel = select::select(set, &split, cfg.alpha)?;
-    let before = metrics::gap(set, &split.held_out, None)?;
-    let all = set.observed_references();
-    let tests = locate::locate(set, &all, None, locate::DEFAULT_BINS)?;
-    let located = locate::located_in(&tests, cfg.alpha);
-    let model_free = match (sel.verdict, located.first()) {
-        (select::Verdict::Unexplained, Some(&c)) => {
-            let m = locate::model_free(set, &split, c, None, locate::DEFAULT_BINS)?;
-            let r = report::ModelFreeReport {
-                covariate: c.name().into(),
-                bins: m.bins.iter().map(|b| bin_report(b, b.offset_m)).collect(),
-                closed_fraction: m.closure.unwrap_or(0.0),
-            };
-            Some((r, gap_metrics(&m.after)))
-        }
-        _ => None,
+    let settings = analysis::Settings {
+        seed: cfg.seed,
+        alpha: cfg.alpha,
+        bins: locate::DEFAULT_BINS,
     };
+    let a = analysis::analyse(set, &settings)?;
+    let sel = &a.selection;
+    let model_free = a.model_free.as_ref().map(|m| {
+        let r = report::ModelFreeReport {
+            covariate: m.covariate.name().into(),
+            bins: m.bins.iter().map(|b| bin_report(b, b.offset_m)).collect(),
+            closed_fraction: m.closure.unwrap_or(0.0),
+        };
+        (r, gap_metrics(&m.after))
+    });
     let obs = &sel.observability;
-    let named: Vec<(model::Effect, f64, f64)> = sel
+    let named = sel
         .effects
         .iter()
         .zip(sel.estimate.iter().zip(&sel.sigma))
         .map(|(&e, (&x, &s))| (e, x, s))
         .collect();
-    let applied = match (&sel.chosen, sel.verdict) {
-        (Some(f), select::Verdict::Effect) => f
-            .effects
+    let applied = sel.correction().map_or_else(Vec::new, |t| {
+        t.effects
             .iter()
             .copied()
-            .zip(f.estimate.iter().copied())
-            .collect(),
-        _ => Vec::new(),
-    };
+            .zip(t.values.iter().copied())
+            .collect()
+    });
     Ok(Statistics {
-        reason: reason(&sel, &before),
-        fit: split.fit.clone(),
-        held_out: split.held_out.clone(),
+        fit: a.split.fit.clone(),
+        held_out: a.split.held_out.clone(),
         verdict: match sel.verdict {
             select::Verdict::Effect => report::Verdict::Effect,
             select::Verdict::None => report::Verdict::None,
@@ -235,7 +227,8 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
         },
         named,
         applied,
-        before: gap_metrics(&before),
+        reason: a.reason.clone(),
+        before: gap_metrics(&a.before),
         observability: report::ObservabilityReport {
             condition_number: obs.condition_number,
             effects: obs
@@ -275,7 +268,8 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
                 significant: c.significant,
             })
             .collect(),
-        covariate_tests: tests
+        covariate_tests: a
+            .covariate_tests
             .iter()
             .map(|t| report::CovariateReport {
                 covariate: t.covariate.name().into(),
@@ -287,7 +281,7 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
                     .collect(),
             })
             .collect(),
-        located_in: located.iter().map(|c| c.name().to_string()).collect(),
+        located_in: a.located_in.iter().map(|c| c.name().to_string()).collect(),
         model_free,
         normalised: locate::normalised_residuals(set, None),
     })
@@ -315,30 +309,5 @@ fn bin_report(b: &locate::Bin, value: f64) -> report::BinReport {
         range: [b.lower, b.upper],
         n: b.n,
         mean: value,
-    }
-}
-
-/// One sentence on why the verdict.
-fn reason(sel: &select::Selection, before: &metrics::Gap) -> String {
-    let null = &sel.null;
-    let held = format!(
-        "held-out chi2/dof {:.2} over {} returns (p = {:.1e} under the model without effects)",
-        before.chi2_per_dof, null.n, null.p_value
-    );
-    match sel.verdict {
-        select::Verdict::Effect => format!(
-            "The named explanation is significant on the fit references at family-wise level \
-             {} (Holm) and confirmed on the held-out references; {held}.",
-            sel.alpha
-        ),
-        select::Verdict::None => format!(
-            "The model holds on the held-out references and no catalogue effect is significant \
-             at family-wise level {} (Holm); {held}.",
-            sel.alpha
-        ),
-        select::Verdict::Unexplained => format!(
-            "The model is rejected on the held-out references and no catalogue effect or \
-             combination closes the gap significantly; {held}."
-        ),
     }
 }
