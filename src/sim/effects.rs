@@ -39,6 +39,27 @@ pub struct Effects {
     pub outage_drift_mps: Option<[f64; 3]>,
     /// Heading bias (deg): SBET heading = true heading + this.
     pub heading_bias_deg: Option<f64>,
+    /// Position latency tau_p (s): SBET position stamped `s` is the true position at
+    /// `s - tau_p`.
+    pub position_latency_s: Option<f64>,
+    /// Clock offset (s): true return time = configured clock's time + this (a t0 error).
+    pub clock_offset_s: Option<f64>,
+    /// Outside the catalogue: range error cyclic in range [amplitude (m), wavelength (m)]:
+    /// recorded range += `A sin(2 pi d / L)`, `d` the true distance.
+    pub range_cyclic_m: Option<[f64; 2]>,
+    /// Outside the catalogue: incidence-dependent range error (m): recorded range +=
+    /// `A sin^2(i)`, `i` the angle between the beam and the surface normal.
+    pub range_incidence_m: Option<f64>,
+}
+
+/// The correction of the catalogue (docs/conventions.md §8) that models one injected effect:
+/// the value to ADD to the configured pipeline value so that a re-run reproduces the truth.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CatalogueCorrection {
+    /// Catalogue name, e.g. `lever_arm_y_m`.
+    pub name: &'static str,
+    /// Value in the name's unit.
+    pub value: f64,
 }
 
 /// One injected effect as recorded in the truth file.
@@ -72,6 +93,13 @@ impl Effects {
             1e-3,
         );
         lim(c, "heading_bias_deg", self.heading_bias_deg, 10.0);
+        lim(c, "position_latency_s", self.position_latency_s, 1.0);
+        lim(c, "clock_offset_s", self.clock_offset_s, 1.0);
+        lim(c, "range_incidence_m", self.range_incidence_m, 1.0);
+        if let Some([a, l]) = self.range_cyclic_m {
+            c.range("effects.range_cyclic_m[0]", a, -1.0, 1.0);
+            c.pos("effects.range_cyclic_m[1]", l);
+        }
         let vec3 = |c: &mut Checker, key: &str, v: Option<[f64; 3]>, max: f64| {
             for (i, x) in v.iter().flatten().enumerate() {
                 c.range(&format!("effects.{key}[{i}]"), *x, -max, max);
@@ -130,6 +158,59 @@ impl Effects {
             "m/s",
         );
         add("heading_bias_deg", one(self.heading_bias_deg), "deg");
+        add("position_latency_s", one(self.position_latency_s), "s");
+        add("clock_offset_s", one(self.clock_offset_s), "s");
+        add("range_cyclic_m", self.range_cyclic_m.map(Vec::from), "m, m");
+        add("range_incidence_m", one(self.range_incidence_m), "m");
+        out
+    }
+
+    /// Whether an effect outside the catalogue is on (quadratic drift, mirror wobble, outage
+    /// drift, cyclic or incidence range error): no catalogue correction models it.
+    pub fn has_uncatalogued(&self) -> bool {
+        self.clock_drift_quadratic_per_s.is_some()
+            || self.mirror_wobble_s.is_some()
+            || self.outage_drift_mps.is_some()
+            || self.range_cyclic_m.is_some()
+            || self.range_incidence_m.is_some()
+    }
+
+    /// The catalogue corrections (docs/conventions.md §8) that model the injected catalogue
+    /// effects exactly, with their signs: what a perfect diagnosis estimates. Zero components
+    /// of vector effects are left out. Effects outside the catalogue give none.
+    pub fn catalogue_corrections(&self) -> Vec<CatalogueCorrection> {
+        let mut out = Vec::new();
+        let mut add = |name, value: Option<f64>| {
+            if let Some(value) = value.filter(|v| *v != 0.0) {
+                out.push(CatalogueCorrection { name, value });
+            }
+        };
+        // Stamps lag the truth by tau: the pipeline reads the attitude (position) at t + tau.
+        add("attitude_latency_s", self.attitude_latency_s);
+        add("position_latency_s", self.position_latency_s);
+        // True time = configured + offset; true period = T (1 + ppm 1e-6).
+        add("clock_offset_s", self.clock_offset_s);
+        add("clock_drift_ppm", self.clock_drift_ppm);
+        let b = self.boresight_error_deg.unwrap_or([0.0; 3]);
+        add("boresight_x_deg", Some(b[0]));
+        add("boresight_y_deg", Some(b[1]));
+        add("boresight_z_deg", Some(b[2]));
+        let l = self.lever_arm_error_m.unwrap_or([0.0; 3]);
+        add("lever_arm_x_m", Some(l[0]));
+        add("lever_arm_y_m", Some(l[1]));
+        add("lever_arm_z_m", Some(l[2]));
+        add("range_zero_m", self.range_zero_error_m);
+        // Recorded rho = d (1 + s) - K, so (1 + S)(rho + K) = d needs 1 + S = 1 / (1 + s).
+        add(
+            "range_scale_ppm",
+            self.range_scale_ppm
+                .map(|s| (1.0 / (1.0 + s * 1e-6) - 1.0) * 1e6),
+        );
+        // Recorded beta = true + offset: the pipeline adds dbeta = -offset.
+        add("encoder_offset_deg", self.encoder_offset_deg.map(|o| -o));
+        add("cone_deg", self.cone_error_deg);
+        // SBET heading = true + bias: the pipeline adds -bias to the SBET heading.
+        add("heading_offset_deg", self.heading_bias_deg.map(|b| -b));
         out
     }
 }

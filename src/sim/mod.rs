@@ -221,8 +221,8 @@ fn scan(
     let mut na = n_first;
     while na < n_end {
         let nb = (na + block).min(n_end);
-        let t_lo = model.true_time(na, model.beta_of(0));
-        let t_hi = model.true_time(nb - 1, model.beta_of(model.points_per_profile() - 1));
+        let t_lo = model.time_bounds(na).0;
+        let t_hi = model.time_bounds(nb - 1).1;
         let k_lo = (((t_lo - sc.start_time_s) * rate).floor() as u64).saturating_sub(2);
         let k_hi = ((t_hi - sc.start_time_s) * rate).ceil() as u64 + 2;
         while gen.next_index() <= k_hi {

@@ -100,6 +100,7 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
     let e = &sc.nav_errors;
     let fx = &sc.effects;
     let tau = fx.attitude_latency_s.unwrap_or(0.0);
+    let tau_p = fx.position_latency_s.unwrap_or(0.0);
     let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x0A7E_0000_0000_0003);
     let mut gm: Vec<GaussMarkov> = (0..6)
         .map(|i| {
@@ -128,7 +129,7 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
     let mut smr = SmrmsgWriter::create(paths.smrmsg)?;
     let mut truth = paths.truth_sbet.map(SbetWriter::create).transpose()?;
     let mut window = Window::default();
-    let lead = (tau.min(0.0).abs() * rate).ceil() as u64 + 2;
+    let lead = (tau.min(tau_p).min(0.0).abs() * rate).ceil() as u64 + 2;
     let mut smr_count = 0;
     for k in 0..n {
         window.fill(&mut gen, k + lead);
@@ -142,6 +143,10 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
         if tau != 0.0 {
             let (r, p, h) = window.attitude_at(t_rec.time_s - tau, sc.start_time_s, rate);
             (rec.roll_rad, rec.pitch_rad, rec.platform_heading_rad) = (r, p, h);
+        }
+        if tau_p != 0.0 {
+            let (lat, lon, alt) = window.position_at(t_rec.time_s - tau_p, sc.start_time_s, rate);
+            (rec.lat_rad, rec.lon_rad, rec.alt_m) = (lat, lon, alt);
         }
         let mut d_ned = [err[0], err[1], err[2]];
         if let Some(drift) = fx.outage_drift_mps {
@@ -181,7 +186,7 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
         for g in gm.iter_mut() {
             g.step(&mut rng);
         }
-        window.drop_before(k.saturating_sub((tau.max(0.0) * rate).ceil() as u64 + 2));
+        window.drop_before(k.saturating_sub((tau.max(tau_p).max(0.0) * rate).ceil() as u64 + 2));
     }
     let sbet_records = sbet.finish()?;
     smr.finish()?;
@@ -219,13 +224,23 @@ impl Window {
     /// True attitude (roll, pitch, heading in [0, 2 pi)) at `t`, interpolated as the truth
     /// is; held at the first sample before the trajectory starts.
     fn attitude_at(&self, t: f64, start: f64, rate: f64) -> (f64, f64, f64) {
+        roll_pitch_heading(&self.sample_at(t, start, rate).q_b_to_n)
+    }
+
+    /// True geodetic position (lat, lon (rad), height (m)) at `t`.
+    fn position_at(&self, t: f64, start: f64, rate: f64) -> (f64, f64, f64) {
+        let s = self.sample_at(t, start, rate);
+        (s.lat_rad, s.lon_rad, s.h_m)
+    }
+
+    /// The true sample at `t`, interpolated as the pipeline does.
+    fn sample_at(&self, t: f64, start: f64, rate: f64) -> NavSample {
         let k = ((t - start) * rate).floor().max(0.0) as u64;
         let k = k.clamp(self.base, self.base + self.recs.len() as u64 - 2);
         let (a, b) = (
             NavSample::from_sbet(&self.get(k)),
             NavSample::from_sbet(&self.get(k + 1)),
         );
-        let s = interpolate(&a, &b, t.max(start));
-        roll_pitch_heading(&s.q_b_to_n)
+        interpolate(&a, &b, t.max(start))
     }
 }

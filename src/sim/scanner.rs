@@ -6,9 +6,11 @@
 //!
 //! Recorded angles lie on a grid: `beta_j = beta_start + dir * 2 pi j / P`. The true beam is
 //! at `beta_j - encoder_offset + noise`, `alpha0 + cone_error + noise`. True time of a return:
-//! `t = t0 + T' nu + q (T' nu)^2 + A sin(2 pi T' nu / P_w)`, `nu = n + f(beta_j)`,
-//! `T' = T (1 + drift_ppm 1e-6)` (SPEC 2 when the effects are off). Recorded range:
-//! `rho = d (1 + scale_ppm 1e-6) - K_true + noise`, `d` the true distance to the surface.
+//! `t = t0 + T' nu + q (T' nu)^2 + A sin(2 pi T' nu / P_w) + clock_offset`,
+//! `nu = n + f(beta_j - encoder_offset)`, `T' = T (1 + drift_ppm 1e-6)` (docs/conventions.md §2
+//! when the effects are off). Recorded range:
+//! `rho = d (1 + scale_ppm 1e-6) - K_true + A_c sin(2 pi d / L_c) + A_i sin^2(i) + noise`, `d`
+//! the true distance to the surface, `i` the incidence angle.
 
 use super::dynamics::Frame;
 use super::scenario::Scenario;
@@ -38,7 +40,10 @@ pub struct ScannerModel {
     quad_per_s: f64,
     wobble: [f64; 2],
     encoder_offset_rad: f64,
+    clock_offset_s: f64,
     range_scale: f64,
+    range_cyclic_m: [f64; 2],
+    range_incidence_m: f64,
     points: u32,
     max_range_m: f64,
     min_range_m: f64,
@@ -90,7 +95,10 @@ impl ScannerModel {
             quad_per_s: fx.clock_drift_quadratic_per_s.unwrap_or(0.0),
             wobble: fx.mirror_wobble_s.unwrap_or([0.0, 1.0]),
             encoder_offset_rad: fx.encoder_offset_deg.unwrap_or(0.0).to_radians(),
+            clock_offset_s: fx.clock_offset_s.unwrap_or(0.0),
             range_scale: 1.0 + fx.range_scale_ppm.unwrap_or(0.0) * 1e-6,
+            range_cyclic_m: fx.range_cyclic_m.unwrap_or([0.0, 1.0]),
+            range_incidence_m: fx.range_incidence_m.unwrap_or(0.0),
             points: s.points_per_profile,
             max_range_m: s.max_range_m,
             min_range_m: s.min_range_m,
@@ -116,29 +124,57 @@ impl ScannerModel {
         crate::geo::rotations::wrap_two_pi(b)
     }
 
-    /// True GPS time (s) of a return of profile `n` recorded at mirror angle `beta_rad`.
+    /// True GPS time (s) of a return of profile `n` recorded at mirror angle `beta_rad`: the
+    /// time model at the TRUE mirror angle (recorded minus the encoder offset, as
+    /// docs/conventions.md §3 has the pipeline add `dbeta` in `f(beta)` too).
     #[inline]
     pub fn true_time(&self, n: u32, beta_rad: f64) -> f64 {
-        let clock = ScannerClock {
-            period_s: self.true_period_s,
-            ..self.clock
-        };
-        let mut t = clock.time_of(n, beta_rad);
+        let beta_true = beta_rad - self.encoder_offset_rad;
+        self.time_at(n as f64 + self.clock.mirror.fraction(beta_true))
+    }
+
+    /// True GPS time (s) at `nu` profiles (counter + fraction) since profile 0.
+    #[inline]
+    fn time_at(&self, nu: f64) -> f64 {
+        let mut t = self.clock.t0_s + self.true_period_s * nu;
         if self.quad_per_s != 0.0 || self.wobble[0] != 0.0 {
-            let tau = self.true_period_s * (n as f64 + self.clock.mirror.fraction(beta_rad));
+            let tau = self.true_period_s * nu;
             t += self.quad_per_s * tau * tau + self.wobble[0] * (TAU * tau / self.wobble[1]).sin();
         }
-        t
+        t + self.clock_offset_s
+    }
+
+    /// Earliest and latest true time (s) of the returns of profile `n`: its first and last
+    /// recorded angles; with an encoder offset (which can wrap the first angle to the end of
+    /// the profile) the whole profile `[nu = n, nu = n + 1]`.
+    pub fn time_bounds(&self, n: u32) -> (f64, f64) {
+        if self.encoder_offset_rad == 0.0 {
+            let last = self.beta_of(self.points - 1);
+            (self.true_time(n, self.beta_of(0)), self.true_time(n, last))
+        } else {
+            (self.time_at(n as f64), self.time_at(n as f64 + 1.0))
+        }
+    }
+
+    /// Range errors outside the catalogue (m) at true distance `d_m` and incidence cosine
+    /// `cos_incidence`: `A sin(2 pi d / L) + B sin^2(i)`; exactly 0 when both are off.
+    #[inline]
+    fn uncatalogued_range_error_m(&self, d_m: f64, cos_incidence: f64) -> f64 {
+        let [a, l] = self.range_cyclic_m;
+        let b = self.range_incidence_m;
+        if a == 0.0 && b == 0.0 {
+            return 0.0;
+        }
+        a * (TAU * d_m / l).sin() + b * (1.0 - cos_incidence * cos_incidence)
     }
 
     /// Profiles whose every return falls in `[t_a, t_b]` of true time: `n_first..n_end`.
     pub fn profile_span(&self, t_a: f64, t_b: f64) -> (u32, u32) {
-        let last_beta = self.beta_of(self.points - 1);
         let mut n_end = ((t_b - self.clock.t0_s) / self.true_period_s).max(0.0) as u32 + 2;
-        while n_end > 0 && self.true_time(n_end - 1, last_beta) > t_b {
+        while n_end > 0 && self.time_bounds(n_end - 1).1 > t_b {
             n_end -= 1;
         }
-        let first = (0..n_end).find(|&n| self.true_time(n, self.beta_of(0)) >= t_a);
+        let first = (0..n_end).find(|&n| self.time_bounds(n).0 >= t_a);
         (first.unwrap_or(n_end), n_end)
     }
 }
@@ -209,8 +245,8 @@ pub fn profile(
         truth: Vec::with_capacity(if want_truth { p * 24 } else { 0 }),
         ..Default::default()
     };
-    let t_n = m.pps.then(|| m.true_time(n, m.clock.mirror.beta_start_rad));
-    let mut hint = window.index_hint(m.true_time(n, m.beta_of(0)));
+    let t_n = m.pps.then(|| m.time_at(n as f64));
+    let mut hint = window.index_hint(m.time_bounds(n).0);
     let noise = |rng: &mut ChaCha8Rng, s: f64| {
         if s > 0.0 {
             let z: f64 = StandardNormal.sample(rng);
@@ -241,7 +277,10 @@ pub fn profile(
             let d = r_e_enu * d_e;
             let key = ((n as u64) << 24) ^ j as u64 ^ m.seed.rotate_left(17);
             if let Some(h) = scene.cast(&o, &d, m.min_range_m, m.max_range_m, key) {
-                let rho = h.t_m * m.range_scale - m.truth.range_zero_m + range_noise;
+                let cos_incidence = h.normal.dot(&d).abs();
+                let rho = h.t_m * m.range_scale - m.truth.range_zero_m
+                    + m.uncatalogued_range_error_m(h.t_m, cos_incidence)
+                    + range_noise;
                 if rho > 0.0 {
                     let refl = if h.object == GROUND {
                         scene.ground_reflectance
@@ -250,7 +289,7 @@ pub fn profile(
                         scene.objects[h.object as usize].reflectance
                     };
                     let fall = (m.ref_range_m / h.t_m).powi(2).min(1.0);
-                    let level = (refl * h.normal.dot(&d).abs() * fall).min(1.0);
+                    let level = (refl * cos_incidence * fall).min(1.0);
                     rec.range_m = rho;
                     rec.intensity = (level * 65535.0).round() as u16;
                     let x = o_e + d_e * h.t_m;

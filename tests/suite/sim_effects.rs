@@ -8,6 +8,7 @@ use crate::sim_support;
 use kinescan::geo::ellipsoid::r_n_to_e;
 use kinescan::geo::rotations::r_zyx;
 use kinescan::sim::Scenario;
+use kinescan::timing::{Mirror, MirrorDirection};
 use kinescan::trajectory::{Trajectory, TrajectoryOptions};
 use nalgebra::{Rotation3, Vector3};
 use sim_support::*;
@@ -121,7 +122,9 @@ fn lever_arm_and_boresight_errors_move_points_rigidly() {
 #[test]
 fn encoder_offset_and_cone_error_tilt_the_beam() {
     // Encoder reads delta too much: D = d * delta * du/dbeta (first order; second-order
-    // term d delta^2 / 2 < 2e-6 m at 80 m).
+    // term d delta^2 / 2 < 2e-6 m at 80 m), plus the body's motion over the time error: the
+    // true time follows the true angle beta - delta (docs/conventions.md §3), which wraps to
+    // the end of the profile for returns recorded within delta after beta_start.
     let delta = 0.01f64.to_radians();
     let mut sc = base();
     sc.effects.encoder_offset_deg = Some(0.01);
@@ -130,13 +133,26 @@ fn encoder_offset_and_cone_error_tilt_the_beam() {
         let b = sc.scanner.boresight_deg.map(f64::to_radians);
         r_zyx(b[0], b[1], b[2])
     };
-    check(&sc, "encoder_offset", 0.0, 3e-6, |p, _| {
+    let mirror = Mirror {
+        beta_start_rad: sc.scanner.beta_start_deg.to_radians(),
+        direction: if sc.scanner.direction > 0 {
+            MirrorDirection::Increasing
+        } else {
+            MirrorDirection::Decreasing
+        },
+    };
+    let (t0, period) = (
+        sc.start_time_s + sc.scanner.t0_offset_s,
+        sc.scanner.period_s,
+    );
+    check(&sc, "encoder_offset", 0.0, 3e-6, |p, tr| {
         let du = Vector3::new(
             0.0,
             -alpha.cos() * p.beta_rad.cos(),
             -alpha.cos() * p.beta_rad.sin(),
         );
-        Some(p.r_b_e * r_sb * du * (dist(p) * delta))
+        let t_true = t0 + period * (p.profile as f64 + mirror.fraction(p.beta_rad - delta));
+        Some(p.r_b_e * r_sb * du * (dist(p) * delta) + shift(tr, p, p.t_s - t_true))
     });
     // True cone angle alpha0 + delta: D = -d * delta * du/dalpha.
     let mut sc = base();
@@ -222,4 +238,83 @@ fn outage_drift_grows_inside_outages_only() {
         Some(r_n_to_e(g.lat_rad, g.lon_rad) * drift * ramp)
     });
     assert!(big > 0.1);
+}
+
+#[test]
+fn position_latency_and_clock_offset_shift_along_the_motion() {
+    // SBET positions lag the truth by tau_p: the pipeline's IMU is where the truth was tau_p
+    // earlier, attitude unchanged: D = r(t - tau_p) - r(t). The pipeline interpolates the
+    // shifted SBET samples linearly, the expectation interpolates the truth samples at
+    // t - tau_p: each is off the true path by at most a dt^2 / 8, so they differ by at most
+    // 2 * 2.5 m/s^2 (the base scenario's max_acc_mps2) * (5 ms)^2 / 8 = 1.6e-5 m.
+    let tau_p = 0.004;
+    let mut sc = base();
+    sc.effects.position_latency_s = Some(tau_p);
+    let big = check(&sc, "position_latency", 0.0, 1.6e-5, |p, tr| {
+        let mut c = tr.cursor();
+        Some(c.at(p.t_s - tau_p).unwrap().r_e_m - c.at(p.t_s).unwrap().r_e_m)
+    });
+    assert!(
+        big > 0.02,
+        "position latency moved no point measurably ({big} m)"
+    );
+    // True time = configured + c: the pipeline is c early (float noise only).
+    let c = 0.003;
+    let mut sc = base();
+    sc.effects.clock_offset_s = Some(c);
+    check(&sc, "clock_offset", 1e-3, 1e-6, |p, tr| {
+        Some(shift(tr, p, -c))
+    });
+}
+
+#[test]
+fn uncatalogued_range_errors_act_along_the_beam() {
+    // Cyclic in range: recorded rho = d + A sin(2 pi d / L): D = A sin(2 pi d / L) along the
+    // beam (float noise only).
+    let (a, l) = (0.02, 7.0);
+    let mut sc = base();
+    sc.effects.range_cyclic_m = Some([a, l]);
+    check(&sc, "range_cyclic", 0.0, 1e-7, |p, _| {
+        Some(p.beam_e.1 * a * (std::f64::consts::TAU * dist(p) / l).sin())
+    });
+    // Incidence: D = B sin^2(i) along the beam, 0 <= D.beam <= B.
+    let b = 0.03;
+    let mut sc = base();
+    sc.effects.range_incidence_m = Some(b);
+    check(&sc, "range_incidence", 0.0, 1e-7, |p, _| {
+        let along = (p.x_e - p.truth_e).dot(&p.beam_e.1);
+        assert!(
+            (-1e-7..=b + 1e-7).contains(&along),
+            "{along} m outside [0, {b}]"
+        );
+        Some(p.beam_e.1 * along)
+    });
+}
+
+#[test]
+fn catalogue_corrections_carry_the_signs_of_the_conventions() {
+    let mut sc = base();
+    let fx = &mut sc.effects;
+    fx.heading_bias_deg = Some(0.05);
+    fx.encoder_offset_deg = Some(0.01);
+    fx.range_scale_ppm = Some(500.0);
+    fx.lever_arm_error_m = Some([0.0, 0.03, 0.0]);
+    let got: Vec<(&str, f64)> = fx
+        .catalogue_corrections()
+        .iter()
+        .map(|c| (c.name, c.value))
+        .collect();
+    let scale = (1.0 / (1.0 + 500e-6) - 1.0) * 1e6;
+    assert_eq!(
+        got,
+        vec![
+            ("lever_arm_y_m", 0.03),
+            ("range_scale_ppm", scale),
+            ("encoder_offset_deg", -0.01),
+            ("heading_offset_deg", -0.05)
+        ]
+    );
+    assert!(!fx.has_uncatalogued());
+    fx.range_cyclic_m = Some([0.01, 5.0]);
+    assert!(fx.has_uncatalogued());
 }
