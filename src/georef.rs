@@ -1,7 +1,9 @@
 //! The georeferencing equation (SPEC 4):
 //! `x_e = r_e(t) + R_n^e(lat(t), lon(t)) * R_b^n(t + tau) * (l_b + R_s^b * x_s)`,
-//! `x_s = (rho + K) * u_s(alpha, beta)`,
-//! `u_s = (sin(alpha), -cos(alpha) sin(beta), cos(alpha) cos(beta))`.
+//! `x_s = (1 + S 1e-6) (rho + K) * u_s(alpha, beta + dbeta)`,
+//! `u_s = (sin(alpha), -cos(alpha) sin(beta), cos(alpha) cos(beta))` (docs/conventions.md §3-4).
+//! Functions taking a [`Sensor`] take the RECORDED range and mirror angle and apply `K`, `S`
+//! and `dbeta` themselves.
 
 use crate::geo::ellipsoid::r_n_to_e;
 use crate::geo::rotations::r_zyx;
@@ -21,10 +23,15 @@ pub struct Sensor {
     pub alpha0_rad: f64,
     /// Range zero error K (m), added to every measured range.
     pub range_zero_m: f64,
+    /// Range scale error S (ppm): the range is `(1 + S 1e-6) (rho + K)`.
+    pub range_scale_ppm: f64,
+    /// Encoder offset dbeta (rad), added to every recorded mirror angle.
+    pub encoder_offset_rad: f64,
 }
 
 impl Sensor {
-    /// A sensor from lever arm (m), boresight angles (rad), alpha0 (rad) and K (m).
+    /// A sensor from lever arm (m), boresight angles (rad), alpha0 (rad) and K (m); no range
+    /// scale error and no encoder offset.
     pub fn new(
         lever_arm_b_m: Vector3<f64>,
         boresight_rad: Vector3<f64>,
@@ -38,23 +45,58 @@ impl Sensor {
             r_s_to_b,
             alpha0_rad,
             range_zero_m,
+            range_scale_ppm: 0.0,
+            encoder_offset_rad: 0.0,
         }
     }
+
+    /// The same sensor with range scale error `S` (ppm).
+    pub fn with_range_scale_ppm(self, range_scale_ppm: f64) -> Self {
+        Sensor {
+            range_scale_ppm,
+            ..self
+        }
+    }
+
+    /// The same sensor with encoder offset `dbeta` (rad).
+    pub fn with_encoder_offset_rad(self, encoder_offset_rad: f64) -> Self {
+        Sensor {
+            encoder_offset_rad,
+            ..self
+        }
+    }
+
+    /// Corrected range `(1 + S 1e-6) (rho + K)` (m) of a recorded range `rho` (m).
+    #[inline]
+    pub fn range_total_m(&self, range_m: f64) -> f64 {
+        (1.0 + self.range_scale_ppm * 1e-6) * (range_m + self.range_zero_m)
+    }
+
+    /// Corrected mirror angle `beta + dbeta` (rad) of a recorded angle `beta` (rad).
+    #[inline]
+    pub fn beta_rad(&self, recorded_beta_rad: f64) -> f64 {
+        recorded_beta_rad + self.encoder_offset_rad
+    }
+}
+
+/// `u_s` from the `(sin, cos)` of alpha and beta: the one place the beam formula is written.
+#[inline]
+fn beam_of_trig((sa, ca): (f64, f64), (sb, cb): (f64, f64)) -> Vector3<f64> {
+    Vector3::new(sa, -ca * sb, ca * cb)
 }
 
 /// Unit beam direction in the scanner frame for out-of-plane angle `alpha` and mirror angle
 /// `beta` (rad).
 #[inline]
 pub fn beam_s(alpha_rad: f64, beta_rad: f64) -> Vector3<f64> {
-    let (sa, ca) = alpha_rad.sin_cos();
-    let (sb, cb) = beta_rad.sin_cos();
-    Vector3::new(sa, -ca * sb, ca * cb)
+    beam_of_trig(alpha_rad.sin_cos(), beta_rad.sin_cos())
 }
 
-/// Measured point in the scanner frame (m): `(rho + K) u_s(alpha, beta)`.
+/// Measured point in the scanner frame (m) of a recorded range (m) and mirror angle (rad):
+/// `(1 + S 1e-6) (rho + K) u_s(alpha, beta + dbeta)`.
 #[inline]
 pub fn point_s(sensor: &Sensor, range_m: f64, alpha_rad: f64, beta_rad: f64) -> Vector3<f64> {
-    beam_s(alpha_rad, beta_rad) * (range_m + sensor.range_zero_m)
+    beam_s(alpha_rad, sensor.beta_rad(beta_rad)) * sensor.range_total_m(range_m)
 }
 
 /// `R_b^e = R_n^e(lat, lon) R_b^n` for a pose.
@@ -81,19 +123,19 @@ pub struct ReturnTerms {
     pub r_b_to_n: Matrix3<f64>,
     /// `(sin, cos)` of alpha.
     pub sin_cos_alpha: (f64, f64),
-    /// `(sin, cos)` of beta.
+    /// `(sin, cos)` of the corrected mirror angle `beta + dbeta`.
     pub sin_cos_beta: (f64, f64),
-    /// `rho + K` (m).
+    /// Corrected range `(1 + S 1e-6) (rho + K)` (m).
     pub range_total_m: f64,
-    /// Scanner-frame point `x_s = (rho + K) u_s(alpha, beta)` (m).
+    /// Scanner-frame point `x_s = range_total_m u_s(alpha, beta + dbeta)` (m).
     pub x_s_m: Vector3<f64>,
     /// `a_b = l_b + R_s^b x_s` (m, body frame).
     pub a_b_m: Vector3<f64>,
 }
 
 impl ReturnTerms {
-    /// The terms for `R_n^e`, `R_b^n`, lever arm `l_b` (m), `R_s^b`, alpha, beta (rad) and
-    /// `rho + K` (m).
+    /// The terms for `R_n^e`, `R_b^n`, lever arm `l_b` (m), `R_s^b`, alpha, corrected beta
+    /// (rad) and corrected range (m).
     pub fn new(
         r_n_to_e: Matrix3<f64>,
         r_b_to_n: Matrix3<f64>,
@@ -103,22 +145,21 @@ impl ReturnTerms {
         beta_rad: f64,
         range_total_m: f64,
     ) -> Self {
-        let (sa, ca) = alpha_rad.sin_cos();
-        let (sb, cb) = beta_rad.sin_cos();
-        let x_s_m = Vector3::new(sa, -ca * sb, ca * cb) * range_total_m;
+        let (sin_cos_alpha, sin_cos_beta) = (alpha_rad.sin_cos(), beta_rad.sin_cos());
+        let x_s_m = beam_of_trig(sin_cos_alpha, sin_cos_beta) * range_total_m;
         ReturnTerms {
             r_n_to_e,
             r_b_to_n,
-            sin_cos_alpha: (sa, ca),
-            sin_cos_beta: (sb, cb),
+            sin_cos_alpha,
+            sin_cos_beta,
             range_total_m,
             x_s_m,
             a_b_m: lever_arm_b_m + r_s_to_b * x_s_m,
         }
     }
 
-    /// The terms of a return with measured range `range_m` (m) georeferenced with `pose` and
-    /// `sensor`.
+    /// The terms of a return with recorded range `range_m` (m) and mirror angle `beta_rad`
+    /// (rad) georeferenced with `pose` and `sensor` (which applies `K`, `S` and `dbeta`).
     #[inline]
     pub fn of_pose(
         pose: &Pose,
@@ -133,16 +174,15 @@ impl ReturnTerms {
             &sensor.lever_arm_b_m,
             &sensor.r_s_to_b,
             alpha_rad,
-            beta_rad,
-            range_m + sensor.range_zero_m,
+            sensor.beta_rad(beta_rad),
+            sensor.range_total_m(range_m),
         )
     }
 
     /// Unit beam `u_s(alpha, beta)` in the scanner frame.
     #[inline]
     pub fn u_s(&self) -> Vector3<f64> {
-        let ((sa, ca), (sb, cb)) = (self.sin_cos_alpha, self.sin_cos_beta);
-        Vector3::new(sa, -ca * sb, ca * cb)
+        beam_of_trig(self.sin_cos_alpha, self.sin_cos_beta)
     }
 
     /// ECEF point (m) for the IMU at `r_e_m` (SPEC 4).
@@ -153,7 +193,8 @@ impl ReturnTerms {
 }
 
 /// The beam as a ray in ECEF: scanner optical centre (m) and unit direction, for the forward
-/// (simulation) direction of the equation. `x_e = origin + (rho + K) * dir`.
+/// (simulation) direction of the equation, for a recorded mirror angle (rad):
+/// `x_e = origin + sensor.range_total_m(rho) * dir`.
 #[inline]
 pub fn beam_e(
     pose: &Pose,
@@ -163,7 +204,7 @@ pub fn beam_e(
 ) -> (Vector3<f64>, Vector3<f64>) {
     let r_b_e = r_b_to_e(pose);
     let origin = pose.nav.r_e_m + r_b_e * sensor.lever_arm_b_m;
-    let dir = r_b_e * (sensor.r_s_to_b * beam_s(alpha_rad, beta_rad));
+    let dir = r_b_e * (sensor.r_s_to_b * beam_s(alpha_rad, sensor.beta_rad(beta_rad)));
     (origin, dir)
 }
 
@@ -206,6 +247,37 @@ mod tests {
             let t = ReturnTerms::of_pose(&pose, &sensor, rho, 0.002, beta);
             assert_eq!(t.point_e(&nav.r_e_m), x);
         }
+    }
+
+    /// S scales the corrected range `rho + K`; dbeta adds to the recorded mirror angle in the
+    /// point, the shared terms and the forward ray alike.
+    #[test]
+    fn range_scale_and_encoder_offset_enter_as_specified() {
+        let base = Sensor::new(Vector3::zeros(), Vector3::zeros(), 0.01, 0.02);
+        let (s_ppm, dbeta) = (150.0, 0.003);
+        let sensor = base
+            .with_range_scale_ppm(s_ppm)
+            .with_encoder_offset_rad(dbeta);
+        let (rho, beta) = (17.3, 0.7);
+        let expect = beam_s(0.01, beta + dbeta) * ((1.0 + s_ppm * 1e-6) * (rho + 0.02));
+        assert_eq!(point_s(&sensor, rho, 0.01, beta), expect);
+        assert_eq!(
+            ReturnTerms::new(
+                Matrix3::identity(),
+                Matrix3::identity(),
+                &Vector3::zeros(),
+                &Matrix3::identity(),
+                0.01,
+                sensor.beta_rad(beta),
+                sensor.range_total_m(rho),
+            )
+            .x_s_m,
+            expect
+        );
+        assert_eq!(
+            point_s(&base, rho, 0.01, beta),
+            beam_s(0.01, beta) * (rho + 0.02)
+        );
     }
 
     #[test]

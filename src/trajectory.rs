@@ -163,11 +163,17 @@ pub struct NavSigma {
 pub struct TrajectoryOptions {
     /// Longest interval between records that may be interpolated across (s).
     pub max_gap_s: f64,
+    /// Added to the SBET true heading (rad): `R_b^n = Rz(heading + offset) Ry(pitch) Rx(roll)`
+    /// (docs/conventions.md §3).
+    pub heading_offset_rad: f64,
 }
 
 impl Default for TrajectoryOptions {
     fn default() -> Self {
-        TrajectoryOptions { max_gap_s: 0.1 }
+        TrajectoryOptions {
+            max_gap_s: 0.1,
+            heading_offset_rad: 0.0,
+        }
     }
 }
 
@@ -201,6 +207,19 @@ impl Trajectory {
     /// First and last SBET times (s).
     pub fn span_s(&self) -> (f64, f64) {
         (self.sbet.time_s(0), self.sbet.time_s(self.sbet.len() - 1))
+    }
+
+    /// Navigation state of SBET record `i` with the heading offset applied. The offset turns
+    /// `R_b^n` about the n-frame z axis (`Rz(h + dh) = Rz(dh) Rz(h)`), so it commutes with the
+    /// slerp between records.
+    fn sample(&self, i: usize) -> NavSample {
+        let mut s = NavSample::from_sbet(&self.sbet.record(i));
+        if self.opts.heading_offset_rad != 0.0 {
+            let dh =
+                UnitQuaternion::from_axis_angle(&Vector3::z_axis(), self.opts.heading_offset_rad);
+            s.q_b_to_n = dh * s.q_b_to_n;
+        }
+        s
     }
 
     /// A cursor for time-ordered queries (cheap; one per thread or chunk).
@@ -267,9 +286,9 @@ impl NavCursor<'_> {
             // Moving one interval forward reuses the decoded end record.
             let a = match (self.b, i == self.idx.wrapping_add(1)) {
                 (Some(b), true) => b,
-                _ => NavSample::from_sbet(&sbet.record(i)),
+                _ => self.traj.sample(i),
             };
-            let b = NavSample::from_sbet(&sbet.record(i + 1));
+            let b = self.traj.sample(i + 1);
             self.attitude = Some(Slerp::new(&a.q_b_to_n, &b.q_b_to_n));
             (self.a, self.b) = (Some(a), Some(b));
             self.idx = i;
@@ -408,6 +427,47 @@ mod tests {
         assert!(mid.angle_to(&expect) < 1e-14);
         let same = slerp(&a, &a, 0.7);
         assert!(same.angle_to(&a) < 1e-15);
+    }
+
+    /// The heading offset adds to the true heading of every interpolated attitude and leaves
+    /// roll and pitch alone.
+    #[test]
+    fn heading_offset_adds_to_the_true_heading() {
+        let dir = std::env::temp_dir().join(format!("kinescan_heading_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("t.sbet");
+        let recs: Vec<SbetRecord> = (0..3)
+            .map(|k| SbetRecord {
+                time_s: k as f64 * 0.01,
+                lat_rad: 0.8,
+                roll_rad: 0.02,
+                pitch_rad: -0.03,
+                platform_heading_rad: 1.0 + 0.1 * k as f64,
+                wander_rad: 0.2,
+                ..Default::default()
+            })
+            .collect();
+        let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(&path).unwrap();
+        recs.iter().for_each(|r| w.push(r).unwrap());
+        w.finish().unwrap();
+        let open = |dh: f64| {
+            let opts = TrajectoryOptions {
+                heading_offset_rad: dh,
+                ..Default::default()
+            };
+            Trajectory::open(&path, None, opts).unwrap()
+        };
+        let (plain, offset) = (open(0.0), open(0.05));
+        let (a, b) = (
+            plain.cursor().at(0.013).unwrap(),
+            offset.cursor().at(0.013).unwrap(),
+        );
+        let (ra, pa, ha) = roll_pitch_heading(&a.q_b_to_n);
+        let (rb, pb, hb) = roll_pitch_heading(&b.q_b_to_n);
+        assert!((rb - ra).abs() < 1e-14 && (pb - pa).abs() < 1e-14);
+        assert!((wrap_pi(hb - ha) - 0.05).abs() < 1e-14, "{}", hb - ha);
+        assert!((ha - (1.13 - 0.2)).abs() < 1e-12);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

@@ -220,12 +220,26 @@ pub struct TrajectoryConfig {
     /// Longest interval between trajectory records that may be interpolated across (s).
     #[serde(default = "default_max_gap_s")]
     pub max_gap_s: f64,
+    /// Added to the SBET true heading (deg, clockwise from north; docs/conventions.md §3).
+    #[serde(default)]
+    pub heading_offset_deg: f64,
 }
 
 impl Default for TrajectoryConfig {
     fn default() -> Self {
         TrajectoryConfig {
             max_gap_s: default_max_gap_s(),
+            heading_offset_deg: 0.0,
+        }
+    }
+}
+
+impl TrajectoryConfig {
+    /// The trajectory options (angles converted to radians).
+    pub fn options(&self) -> crate::trajectory::TrajectoryOptions {
+        crate::trajectory::TrajectoryOptions {
+            max_gap_s: self.max_gap_s,
+            heading_offset_rad: self.heading_offset_deg.to_radians(),
         }
     }
 }
@@ -245,6 +259,13 @@ pub struct SensorConfig {
     /// Range zero error K (m), added to every range.
     #[serde(default)]
     pub range_zero_m: f64,
+    /// Range scale error S (ppm): `x_s = (1 + S 1e-6) (rho + K) u_s` (docs/conventions.md §3).
+    #[serde(default)]
+    pub range_scale_ppm: f64,
+    /// Encoder offset dbeta (deg), added to the recorded mirror angle everywhere it is used:
+    /// the beam direction and the time model's `f(beta)` (docs/conventions.md §2-3).
+    #[serde(default)]
+    pub encoder_offset_deg: f64,
     /// Returns closer than this are rejected (m).
     #[serde(default = "default_min_range_m")]
     pub min_range_m: f64,
@@ -262,6 +283,8 @@ impl SensorConfig {
             self.alpha0_deg.to_radians(),
             self.range_zero_m,
         )
+        .with_range_scale_ppm(self.range_scale_ppm)
+        .with_encoder_offset_rad(self.encoder_offset_deg.to_radians())
     }
 }
 
@@ -310,10 +333,12 @@ pub struct TimeConfig {
 }
 
 impl TimeConfig {
-    /// The mirror geometry (radians).
-    pub fn mirror(&self) -> crate::timing::Mirror {
+    /// The mirror geometry (radians) for RECORDED mirror angles, with the encoder offset
+    /// dbeta (deg, `sensor.encoder_offset_deg`) applied: `f(beta + dbeta)` is the fraction of
+    /// the recorded `beta` with the profile start moved to `beta_start - dbeta`.
+    pub fn mirror(&self, encoder_offset_deg: f64) -> crate::timing::Mirror {
         crate::timing::Mirror {
-            beta_start_rad: self.beta_start_deg.to_radians(),
+            beta_start_rad: (self.beta_start_deg - encoder_offset_deg).to_radians(),
             direction: self.direction,
         }
     }
@@ -686,6 +711,19 @@ fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
             "time.t0_s",
             "the software time model needs t0_s (or a sync stage)".into(),
         );
+    }
+    let s = &c.sensor;
+    for (key, v) in [
+        ("sensor.range_scale_ppm", s.range_scale_ppm),
+        ("sensor.encoder_offset_deg", s.encoder_offset_deg),
+        (
+            "trajectory.heading_offset_deg",
+            c.trajectory.heading_offset_deg,
+        ),
+    ] {
+        if !v.is_finite() {
+            return bad(key, format!("must be a finite number, got {v}"));
+        }
     }
     let l = &c.latency;
     if !(l.attitude_s.abs() < 1.0 && l.position_s.abs() < 1.0) {

@@ -13,7 +13,7 @@ use crate::georef::{ReturnTerms, Sensor};
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
 use crate::timing::ScannerClock;
-use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory, TrajectoryOptions};
+use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory};
 use crate::uncertainty::model::FrameCache;
 use crate::uncertainty::propagate::{AxisVariances, Propagator, TVU95_FACTOR};
 use crate::{Error, Result};
@@ -365,9 +365,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     super::files::check_collisions_of(p)?;
     let mut stages = Vec::new();
     let started = Instant::now();
-    let traj_opts = TrajectoryOptions {
-        max_gap_s: c.trajectory.max_gap_s,
-    };
+    let traj_opts = c.trajectory.options();
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let mut files = vec![
         FileRecord::of("pipeline", &p.path)?,
@@ -615,7 +613,7 @@ fn georeferencer<'a>(
         return Err(Error::bad_file(file.path(), msg));
     }
     let sensor = s.sensor();
-    let mirror = c.time.mirror();
+    let mirror = c.time.mirror(c.sensor.encoder_offset_deg);
     let clock = ScannerClock {
         t0_s: c.time.t0_s.unwrap_or(0.0),
         period_s: c.time.period_s,
@@ -854,9 +852,7 @@ impl CounterTracker {
 pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     let c = &p.config;
     super::files::check_collisions_of(p)?;
-    let traj_opts = TrajectoryOptions {
-        max_gap_s: c.trajectory.max_gap_s,
-    };
+    let traj_opts = c.trajectory.options();
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let frame = map_frame(&c.output.frame, &traj)?;
     check_frame_near_data(p, &frame, &traj)?;

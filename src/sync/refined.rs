@@ -148,16 +148,18 @@ impl Model<'_> {
             }
             let r_s_e = r_b_to_e(&pose) * self.sensor.r_s_to_b;
             let (sa, ca) = ret.alpha_rad.sin_cos();
-            let (sb, cb) = ret.beta_rad.sin_cos();
-            let u = r_s_e * Vector3::new(sa, -ca * sb, ca * cb);
+            let beta = self.sensor.beta_rad(ret.beta_rad);
+            let (sb, cb) = beta.sin_cos();
+            let u = r_s_e * crate::georef::beam_s(ret.alpha_rad, beta);
             let du_b = r_s_e * Vector3::new(0.0, -ca * cb, -ca * sb);
             let du_a = r_s_e * Vector3::new(ca, sa * sb, -sa * cb);
-            let rho = ret.range_m + self.sensor.range_zero_m;
+            let rho = self.sensor.range_total_m(ret.range_m);
             let sa2 = (rho * self.sigma_angle_rad).powi(2);
             d[k] = (self.sigma_range_m * n.dot(&u)).powi(2)
                 + sa2 * (n.dot(&du_b).powi(2) + n.dot(&du_a).powi(2));
             // x = r + R_b^e v_b; a body rotation error dphi moves x by -R_b^e [v_b]x dphi.
-            let v_b = self.sensor.lever_arm_b_m + self.sensor.r_s_to_b * (u_s_point(ret, rho));
+            let x_s = crate::georef::point_s(self.sensor, ret.range_m, ret.alpha_rad, ret.beta_rad);
+            let v_b = self.sensor.lever_arm_b_m + self.sensor.r_s_to_b * x_s;
             let row = -(n.transpose() * r_b_to_e(&pose) * skew(&v_b));
             a_rows.set_row(k, &row);
         }
@@ -219,11 +221,6 @@ impl Model<'_> {
             problem: "Gauss-Newton did not converge in 30 iterations".into(),
         })
     }
-}
-
-/// Scanner-frame point of a return without the range zero (used for the lever of attitude).
-fn u_s_point(ret: &TargetReturn, rho: f64) -> Vector3<f64> {
-    crate::georef::beam_s(ret.alpha_rad, ret.beta_rad) * rho
 }
 
 /// Inverse of a symmetric positive matrix through its unit-diagonal scaling.

@@ -40,7 +40,7 @@ pub fn run(
     let targets = SyncTarget::from_surveys(&points, patches.as_deref().unwrap_or(&[]));
     let s = &c.sensor;
     let sensor = s.sensor();
-    let mirror = c.time.mirror();
+    let mirror = c.time.mirror(s.encoder_offset_deg);
     let t0 = sy.t0_approx_s.or(c.time.t0_s).ok_or_else(|| {
         Error::config(
             "pipeline",

@@ -19,7 +19,7 @@ use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
 use crate::pipeline::executor::open_profiles;
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
-use crate::trajectory::{PoseCursor, Trajectory, TrajectoryOptions};
+use crate::trajectory::{PoseCursor, Trajectory};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -99,9 +99,7 @@ pub fn observe(
 ) -> Result<Observed> {
     check_pipeline(p)?;
     let c = &p.config;
-    let traj_opts = TrajectoryOptions {
-        max_gap_s: c.trajectory.max_gap_s,
-    };
+    let traj_opts = c.trajectory.options();
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let files = open_profiles(&c.inputs.profiles, staging.path())?;
@@ -203,7 +201,7 @@ impl<'a> ReturnModel<'a> {
             clock: ScannerClock {
                 t0_s: c.time.t0_s.unwrap_or(0.0),
                 period_s: c.time.period_s,
-                mirror: c.time.mirror(),
+                mirror: c.time.mirror(c.sensor.encoder_offset_deg),
             },
             model: c.time.model,
             alpha_column,

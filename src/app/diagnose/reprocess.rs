@@ -42,8 +42,7 @@ enum Value {
     Vector([f64; 3]),
 }
 
-/// The configured value of a key (`None` for the keys this build's configuration lacks, which
-/// default to 0).
+/// The configured value of a key.
 fn configured(c: &PipelineConfig, key: &str) -> Result<Value> {
     Ok(match key {
         "latency.attitude_s" => Value::Scalar(c.latency.attitude_s),
@@ -61,9 +60,9 @@ fn configured(c: &PipelineConfig, key: &str) -> Result<Value> {
         "sensor.lever_arm_b_m" => Value::Vector(c.sensor.lever_arm_b_m),
         "sensor.range_zero_m" => Value::Scalar(c.sensor.range_zero_m),
         "sensor.alpha0_deg" => Value::Scalar(c.sensor.alpha0_deg),
-        "sensor.range_scale_ppm"
-        | "sensor.encoder_offset_deg"
-        | "trajectory.heading_offset_deg" => Value::Scalar(0.0),
+        "sensor.range_scale_ppm" => Value::Scalar(c.sensor.range_scale_ppm),
+        "sensor.encoder_offset_deg" => Value::Scalar(c.sensor.encoder_offset_deg),
+        "trajectory.heading_offset_deg" => Value::Scalar(c.trajectory.heading_offset_deg),
         other => unreachable!("{other} is not a corrected key"),
     })
 }
