@@ -1,13 +1,15 @@
-//! Generalised least squares under the per-visit residual model of [`super::model`]: the
-//! covariance of visit `v` is `C_v = D_v + G_v P_v G_v^T`, inverted by Woodbury with
-//! `P_v = L L^T`: `C_v^-1 = D^-1 - D^-1 G L (I + L^T G^T D^-1 G L)^-1 L^T G^T D^-1`, so every
-//! product `X^T C^-1 X` costs O(n_v p^2) per visit: O(n k^2) overall, never O(n^2).
-//!
-//! The catalogue's sufficient statistics `[S | r]^T C^-1 [S | r]` are summed once per
-//! reference ([`CatalogueNormals`]); any fit, chi2 or held-out evaluation on any set of
-//! references is then a small (K+1)x(K+1) problem.
+//! Generalised least squares under the residual model of [`super::model`]. The returns of one
+//! visit share a navigation error `z_v ~ N(0, P_v)`; with correlation times
+//! ([`ObservationSet::nav_tau_s`]) the errors of visits close in time are correlated too
+//! (first-order Gauss-Markov: `Cov(z_v,k, z_w,k) = exp(-|t_v - t_w| / tau_k) s_v,k s_w,k`,
+//! `s = sqrt(diag P)`), and visits form blocks (consecutive visits less than 5 tau apart, at most
+//! [`MAX_BLOCK_VISITS`]). The covariance of a block is `C = D + G Sigma G^T`, inverted by
+//! Woodbury with `Sigma = L L^T`: `C^-1 = D^-1 - D^-1 G L (I + L^T G^T D^-1 G L)^-1 L^T G^T D^-1`.
+//! Every product `X^T C^-1 X` needs only per-visit sums (`X^T D^-1 X`, `G^T D^-1 X`,
+//! `G^T D^-1 G`: O(n p^2) in all) and one `6V x 6V` problem per block of `V` visits; never
+//! O(n^2).
 
-use super::model::{signature_index, Effect, Observation, ObservationSet, Visit, N_EFFECTS};
+use super::model::{signature_index, Effect, Observation, ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen};
 use rand::seq::SliceRandom;
@@ -18,53 +20,28 @@ use rayon::prelude::*;
 /// One design row, sparse: `(column, value)` entries, each column at most once.
 pub(crate) type RowFn<'a> = dyn Fn(&Observation, &mut Vec<(usize, f64)>) + Sync + 'a;
 
-/// Columns of `L` with `P = L L^T` (eigen-decomposition of the symmetrised `P`; rounding
-/// negatives clamped, null directions dropped).
-fn nav_sqrt(p: &[[f64; 6]; 6]) -> Vec<[f64; 6]> {
-    let m = Matrix6::from_fn(|i, j| 0.5 * (p[i][j] + p[j][i]));
-    let eig = SymmetricEigen::new(m);
-    (0..6)
-        .filter(|&k| eig.eigenvalues[k] > 0.0)
-        .map(|k| {
-            let s = eig.eigenvalues[k].sqrt();
-            std::array::from_fn(|i| eig.eigenvectors[(i, k)] * s)
-        })
-        .collect()
+/// Most visits in one correlated block (a longer chain is cut: the correlation across a cut is
+/// dropped, which keeps each block's `6V x 6V` problem small).
+pub const MAX_BLOCK_VISITS: usize = 64;
+
+/// Visits further apart than this many correlation times are treated as independent
+/// (correlation below e^-5 = 0.007).
+const INDEPENDENT_TAUS: f64 = 5.0;
+
+/// Per-visit sums on the columns its rows touch: `X^T D^-1 X`, `G^T D^-1 X`, `G^T D^-1 G`.
+struct VisitStats {
+    columns: Vec<usize>,
+    a: DMatrix<f64>,
+    b: DMatrix<f64>,
+    k: Matrix6<f64>,
 }
 
-/// One visit's `X^T C^-1 X` on the columns its rows touch.
-pub(crate) struct VisitGram {
-    /// Global column of each local row/column of `gram`.
-    pub columns: Vec<usize>,
-    /// `X_v^T C_v^-1 X_v` (local columns).
-    pub gram: DMatrix<f64>,
-}
-
-impl VisitGram {
-    /// Adds this gram into a global `p x p` matrix.
-    pub fn add_to(&self, total: &mut DMatrix<f64>) {
-        for (a, &ca) in self.columns.iter().enumerate() {
-            for (b, &cb) in self.columns.iter().enumerate() {
-                total[(ca, cb)] += self.gram[(a, b)];
-            }
-        }
-    }
-}
-
-fn visit_gram(
-    set: &ObservationSet,
-    members: &[usize],
-    visit: &Visit,
-    p: usize,
-    row: &RowFn,
-) -> VisitGram {
-    let l = nav_sqrt(&visit.nav_cov);
-    let q = l.len();
+fn visit_stats(set: &ObservationSet, members: &[usize], p: usize, row: &RowFn) -> VisitStats {
     let mut local = vec![usize::MAX; p];
     let mut columns = Vec::new();
-    let mut entries = Vec::new();
     let mut row_entries: Vec<(usize, f64)> = Vec::new();
     let mut rows = Vec::with_capacity(members.len());
+    let mut entries = Vec::new();
     for &i in members {
         let o = &set.observations[i];
         row_entries.clear();
@@ -77,16 +54,12 @@ fn visit_gram(
             }
             entries.push((local[c], x));
         }
-        let g_l: [f64; 6] = std::array::from_fn(|k| {
-            l.get(k)
-                .map_or(0.0, |lk| (0..6).map(|j| o.nav_gradient[j] * lk[j]).sum())
-        });
-        rows.push((start, entries.len(), 1.0 / o.var_white_m2, g_l));
+        rows.push((start, entries.len(), 1.0 / o.var_white_m2, &o.nav_gradient));
     }
     let m = columns.len();
     let mut a = DMatrix::<f64>::zeros(m, m);
-    let mut b = DMatrix::<f64>::zeros(q, m);
-    let mut inner = DMatrix::<f64>::identity(q, q);
+    let mut b = DMatrix::<f64>::zeros(6, m);
+    let mut k = Matrix6::<f64>::zeros();
     for &(start, end, w, g) in &rows {
         let e = &entries[start..end];
         for &(ca, xa) in e {
@@ -94,35 +67,182 @@ fn visit_gram(
             for &(cb, xb) in e {
                 a[(ca, cb)] += wx * xb;
             }
-            for k in 0..q {
-                b[(k, ca)] += g[k] * wx;
+            for (j, gj) in g.iter().enumerate() {
+                b[(j, ca)] += gj * wx;
             }
         }
-        for k in 0..q {
-            for j in 0..q {
-                inner[(k, j)] += w * g[k] * g[j];
+        for i in 0..6 {
+            for j in 0..6 {
+                k[(i, j)] += w * g[i] * g[j];
             }
         }
     }
-    if q > 0 {
-        // I + L^T G^T D^-1 G L is symmetric positive definite (identity plus a Gram matrix).
-        let chol = inner
-            .cholesky()
-            .expect("identity plus a Gram matrix is positive definite");
-        let solved = chol.solve(&b);
-        a -= b.transpose() * solved;
-    }
-    VisitGram { columns, gram: a }
+    VisitStats { columns, a, b, k }
 }
 
-/// `X_v^T C_v^-1 X_v` for every visit whose reference is in `refs`, with the visit index, in
-/// visit order (computed in parallel, returned in a fixed order: sums are reproducible).
-pub(crate) fn visit_grams(
+/// Mid time of each visit (mean return time, s).
+fn visit_times(set: &ObservationSet) -> Vec<f64> {
+    let mut sum = vec![0.0; set.visits.len()];
+    let mut n = vec![0usize; set.visits.len()];
+    for o in &set.observations {
+        sum[o.visit] += o.covariates.time_s;
+        n[o.visit] += 1;
+    }
+    sum.iter()
+        .zip(&n)
+        .map(|(s, &n)| s / n.max(1) as f64)
+        .collect()
+}
+
+/// The correlated blocks of the visits in `visits` (time order inside a block).
+fn blocks(set: &ObservationSet, visits: Vec<usize>, times: &[f64]) -> Vec<Vec<usize>> {
+    let Some(tau) = set.nav_tau_s else {
+        return visits.into_iter().map(|v| vec![v]).collect();
+    };
+    let gap = INDEPENDENT_TAUS * tau[0].max(tau[1]);
+    let mut sorted = visits;
+    sorted.sort_by(|&a, &b| times[a].total_cmp(&times[b]).then(a.cmp(&b)));
+    let mut out: Vec<Vec<usize>> = Vec::new();
+    for v in sorted {
+        match out.last_mut() {
+            Some(last)
+                if last.len() < MAX_BLOCK_VISITS
+                    && times[v] - times[*last.last().expect("blocks are never empty")] <= gap =>
+            {
+                last.push(v)
+            }
+            _ => out.push(vec![v]),
+        }
+    }
+    out
+}
+
+/// `Sigma` of a block: `P_v` on the diagonal blocks, Gauss-Markov correlations between visits.
+fn block_cov(set: &ObservationSet, block: &[usize], times: &[f64]) -> DMatrix<f64> {
+    let n = 6 * block.len();
+    let mut s = DMatrix::zeros(n, n);
+    for (i, &v) in block.iter().enumerate() {
+        let pv = &set.visits[v].nav_cov;
+        for k in 0..6 {
+            for l in 0..6 {
+                s[(6 * i + k, 6 * i + l)] = 0.5 * (pv[k][l] + pv[l][k]);
+            }
+        }
+        let Some(tau) = set.nav_tau_s else { continue };
+        for (j, &w) in block.iter().enumerate().skip(i + 1) {
+            let pw = &set.visits[w].nav_cov;
+            let dt = (times[v] - times[w]).abs();
+            for k in 0..6 {
+                let c = (-dt / tau[k / 3]).exp() * (pv[k][k].max(0.0) * pw[k][k].max(0.0)).sqrt();
+                s[(6 * i + k, 6 * j + k)] = c;
+                s[(6 * j + k, 6 * i + k)] = c;
+            }
+        }
+    }
+    s
+}
+
+/// `X^T C^-1 X` of one block on the columns its rows touch.
+pub(crate) struct BlockGram {
+    /// Global column of each local row/column of `gram`.
+    pub columns: Vec<usize>,
+    /// `X^T C^-1 X` (local columns).
+    pub gram: DMatrix<f64>,
+}
+
+impl BlockGram {
+    /// Adds this gram into a global `p x p` matrix.
+    pub fn add_to(&self, total: &mut DMatrix<f64>) {
+        for (a, &ca) in self.columns.iter().enumerate() {
+            for (b, &cb) in self.columns.iter().enumerate() {
+                total[(ca, cb)] += self.gram[(a, b)];
+            }
+        }
+    }
+}
+
+/// `L` with `Sigma = L L^T`: Cholesky after a jitter of 1e-12 of the largest variance (a
+/// block of visits close in time is nearly singular), else the eigen-decomposition with null
+/// directions dropped.
+fn sigma_sqrt(sigma: DMatrix<f64>) -> DMatrix<f64> {
+    let n = sigma.nrows();
+    let max = sigma.diagonal().max();
+    if max <= 0.0 {
+        return DMatrix::zeros(n, 0);
+    }
+    let mut jittered = sigma.clone();
+    for i in 0..n {
+        jittered[(i, i)] += 1e-12 * max;
+    }
+    if let Some(c) = jittered.cholesky() {
+        return c.l();
+    }
+    let eig = SymmetricEigen::new(sigma);
+    let keep: Vec<usize> = (0..n).filter(|&j| eig.eigenvalues[j] > 0.0).collect();
+    DMatrix::from_fn(n, keep.len(), |i, j| {
+        eig.eigenvectors[(i, keep[j])] * eig.eigenvalues[keep[j]].sqrt()
+    })
+}
+
+fn block_gram(stats: &[&VisitStats], sigma: DMatrix<f64>, p: usize) -> BlockGram {
+    let mut local = vec![usize::MAX; p];
+    let mut columns = Vec::new();
+    for s in stats {
+        for &c in &s.columns {
+            if local[c] == usize::MAX {
+                local[c] = columns.len();
+                columns.push(c);
+            }
+        }
+    }
+    let m = columns.len();
+    let nz = 6 * stats.len();
+    let mut a = DMatrix::<f64>::zeros(m, m);
+    let mut b = DMatrix::<f64>::zeros(nz, m);
+    for (i, s) in stats.iter().enumerate() {
+        for (x, &cx) in s.columns.iter().enumerate() {
+            for (y, &cy) in s.columns.iter().enumerate() {
+                a[(local[cx], local[cy])] += s.a[(x, y)];
+            }
+            for r in 0..6 {
+                b[(6 * i + r, local[cx])] += s.b[(r, x)];
+            }
+        }
+    }
+    let l = sigma_sqrt(sigma);
+    if l.ncols() == 0 {
+        return BlockGram { columns, gram: a };
+    }
+    // K L with K = blockdiag(G_v^T D^-1 G_v).
+    let mut kl = DMatrix::<f64>::zeros(nz, l.ncols());
+    for (i, s) in stats.iter().enumerate() {
+        let rows = l.rows(6 * i, 6);
+        kl.rows_mut(6 * i, 6)
+            .copy_from(&(DMatrix::from_fn(6, 6, |r, c| s.k[(r, c)]) * rows));
+    }
+    let lt = l.transpose();
+    let mut inner = &lt * kl;
+    for j in 0..l.ncols() {
+        inner[(j, j)] += 1.0;
+    }
+    let bl = &lt * b;
+    // I + L^T K L is symmetric positive definite (identity plus a Gram matrix).
+    let chol = inner
+        .cholesky()
+        .expect("identity plus a Gram matrix is positive definite");
+    a -= bl.transpose() * chol.solve(&bl);
+    BlockGram { columns, gram: a }
+}
+
+/// `X^T C^-1 X` of every correlated block of the visits on `refs` (computed in parallel,
+/// returned in a fixed order: sums are reproducible). Only the visits on `refs` enter a block:
+/// the result is the exact `X^T C^-1 X` of those returns.
+pub(crate) fn block_grams(
     set: &ObservationSet,
     refs: &[usize],
     p: usize,
     row: &RowFn,
-) -> Vec<(usize, VisitGram)> {
+) -> Vec<BlockGram> {
     let mut selected = vec![false; set.reference_ids.len()];
     for &r in refs {
         if let Some(s) = selected.get_mut(r) {
@@ -130,14 +250,34 @@ pub(crate) fn visit_grams(
         }
     }
     let members = set.visit_members();
-    (0..set.visits.len())
-        .into_par_iter()
+    let visits: Vec<usize> = (0..set.visits.len())
         .filter(|&v| selected.get(set.visits[v].reference) == Some(&true) && !members[v].is_empty())
-        .map(|v| (v, visit_gram(set, &members[v], &set.visits[v], p, row)))
+        .collect();
+    let stats: Vec<Option<VisitStats>> = (0..set.visits.len())
+        .into_par_iter()
+        .map(|v| {
+            (selected.get(set.visits[v].reference) == Some(&true) && !members[v].is_empty())
+                .then(|| visit_stats(set, &members[v], p, row))
+        })
+        .collect();
+    let times = visit_times(set);
+    blocks(set, visits, &times)
+        .into_par_iter()
+        .map(|block| {
+            let s: Vec<&VisitStats> = block
+                .iter()
+                .map(|&v| {
+                    stats[v]
+                        .as_ref()
+                        .expect("statistics of every selected visit")
+                })
+                .collect();
+            block_gram(&s, block_cov(set, &block, &times), p)
+        })
         .collect()
 }
 
-/// `sum_v X_v^T C_v^-1 X_v` over the visits of `refs` (`p x p`).
+/// `X^T C^-1 X` over the returns on `refs` (`p x p`).
 pub(crate) fn total_gram(
     set: &ObservationSet,
     refs: &[usize],
@@ -145,7 +285,7 @@ pub(crate) fn total_gram(
     row: &RowFn,
 ) -> DMatrix<f64> {
     let mut total = DMatrix::zeros(p, p);
-    for (_, g) in visit_grams(set, refs, p, row) {
+    for g in block_grams(set, refs, p, row) {
         g.add_to(&mut total);
     }
     total
@@ -169,47 +309,6 @@ pub(crate) fn count_on(set: &ObservationSet, refs: &[usize]) -> usize {
 fn catalogue_row(o: &Observation, out: &mut Vec<(usize, f64)>) {
     out.extend(o.signature.iter().copied().enumerate());
     out.push((N_EFFECTS, o.residual_m));
-}
-
-/// `[S | r]^T C^-1 [S | r]` summed per reference: the sufficient statistics of every GLS fit
-/// of catalogue effects.
-#[derive(Debug, Clone)]
-pub struct CatalogueNormals {
-    by_reference: Vec<DMatrix<f64>>,
-    n_by_reference: Vec<usize>,
-}
-
-impl CatalogueNormals {
-    /// Validates `set` and accumulates its statistics (O(n K^2)).
-    pub fn new(set: &ObservationSet) -> Result<Self> {
-        set.validate()?;
-        let p = N_EFFECTS + 1;
-        let refs = set.observed_references();
-        let mut by_reference = vec![DMatrix::zeros(p, p); set.reference_ids.len()];
-        for (v, g) in visit_grams(set, &refs, p, &catalogue_row) {
-            g.add_to(&mut by_reference[set.visits[v].reference]);
-        }
-        let mut n_by_reference = vec![0; set.reference_ids.len()];
-        for o in &set.observations {
-            n_by_reference[o.reference] += 1;
-        }
-        Ok(CatalogueNormals {
-            by_reference,
-            n_by_reference,
-        })
-    }
-
-    /// The statistics summed over `refs`.
-    pub fn on(&self, refs: &[usize]) -> Normals {
-        let p = N_EFFECTS + 1;
-        let mut m = DMatrix::zeros(p, p);
-        let mut n = 0;
-        for &r in refs {
-            m += &self.by_reference[r];
-            n += self.n_by_reference[r];
-        }
-        Normals { n, m }
-    }
 }
 
 /// `[S | r]^T C^-1 [S | r]` on a set of references, and its number of observations.
@@ -239,6 +338,15 @@ pub struct Fit {
 }
 
 impl Normals {
+    /// The catalogue's statistics on the returns of `refs` (validates `set`).
+    pub fn of(set: &ObservationSet, refs: &[usize]) -> Result<Normals> {
+        set.validate()?;
+        Ok(Normals {
+            n: count_on(set, refs),
+            m: total_gram(set, refs, N_EFFECTS + 1, &catalogue_row),
+        })
+    }
+
     /// `r^T C^-1 r` with no effect.
     pub fn chi2_null(&self) -> f64 {
         self.m[(N_EFFECTS, N_EFFECTS)]
@@ -317,9 +425,9 @@ impl Normals {
     }
 }
 
-/// GLS fit of `effects` on the references `refs` (convenience over [`CatalogueNormals`]).
+/// GLS fit of `effects` on the references `refs`.
 pub fn fit(set: &ObservationSet, refs: &[usize], effects: &[Effect]) -> Result<Fit> {
-    CatalogueNormals::new(set)?.on(refs).fit(effects)
+    Normals::of(set, refs)?.fit(effects)
 }
 
 /// The references used to fit and the references held out to check.
@@ -358,11 +466,13 @@ mod tests {
     use super::super::model::synthetic::{draw, Scenario};
     use super::*;
 
-    /// Dense reference: `X^T C^-1 X` with the full `C` of one visit.
-    fn dense_gram(set: &ObservationSet, v: usize) -> DMatrix<f64> {
-        let idx: Vec<usize> = set.visit_members()[v].clone();
-        let p = N_EFFECTS + 1;
-        let x = DMatrix::from_fn(idx.len(), p, |i, j| {
+    /// Dense reference: `X^T C^-1 X` with the full covariance of the returns on `refs`.
+    fn dense_gram(set: &ObservationSet, refs: &[usize]) -> DMatrix<f64> {
+        let idx: Vec<usize> = (0..set.observations.len())
+            .filter(|&i| refs.contains(&set.observations[i].reference))
+            .collect();
+        let times = visit_times(set);
+        let x = DMatrix::from_fn(idx.len(), N_EFFECTS + 1, |i, j| {
             let o = &set.observations[idx[i]];
             if j < N_EFFECTS {
                 o.signature[j]
@@ -370,28 +480,41 @@ mod tests {
                 o.residual_m
             }
         });
-        let g = DMatrix::from_fn(idx.len(), 6, |i, j| {
-            set.observations[idx[i]].nav_gradient[j]
+        let c = DMatrix::from_fn(idx.len(), idx.len(), |i, j| {
+            let (a, b) = (&set.observations[idx[i]], &set.observations[idx[j]]);
+            let s = block_cov(set, &[a.visit, b.visit], &times);
+            let off = if a.visit == b.visit { 0 } else { 6 };
+            let mut v: f64 = (0..6)
+                .map(|k| {
+                    (0..6)
+                        .map(|l| a.nav_gradient[k] * s[(k, off + l)] * b.nav_gradient[l])
+                        .sum::<f64>()
+                })
+                .sum();
+            if i == j {
+                v += a.var_white_m2;
+            }
+            v
         });
-        let pm = DMatrix::from_fn(6, 6, |i, j| set.visits[v].nav_cov[i][j]);
-        let mut c = &g * pm * g.transpose();
-        for (i, &k) in idx.iter().enumerate() {
-            c[(i, i)] += set.observations[k].var_white_m2;
-        }
         x.transpose() * c.try_inverse().unwrap() * x
     }
 
     #[test]
     fn woodbury_equals_the_dense_inverse() {
-        let set = draw(&Scenario::default(), 3);
-        let grams = visit_grams(&set, &[0], N_EFFECTS + 1, &catalogue_row);
-        let (v, g) = &grams[0];
-        let mut total = DMatrix::zeros(N_EFFECTS + 1, N_EFFECTS + 1);
-        g.add_to(&mut total);
-        let dense = dense_gram(&set, *v);
-        let scale = dense.abs().max();
-        // Both are exact up to rounding of a 40x40 inverse with condition ~1e4.
-        assert!((total - &dense).abs().max() < 1e-8 * scale);
+        for tau in [None, Some([60.0, 30.0])] {
+            let set = draw(
+                &Scenario {
+                    nav_tau_s: tau,
+                    ..Default::default()
+                },
+                3,
+            );
+            let blocked = total_gram(&set, &[0, 1], N_EFFECTS + 1, &catalogue_row);
+            let dense = dense_gram(&set, &[0, 1]);
+            let scale = dense.abs().max();
+            // Both exact up to rounding of a 240x240 inverse with condition ~1e4.
+            assert!((blocked - &dense).abs().max() < 1e-8 * scale, "tau {tau:?}");
+        }
     }
 
     #[test]

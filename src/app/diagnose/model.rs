@@ -175,6 +175,10 @@ pub struct ObservationSet {
     pub reference_ids: Vec<String>,
     /// Number of passes (profile files).
     pub passes: usize,
+    /// Correlation times (s) of the navigation position and attitude errors (first-order
+    /// Gauss-Markov): visits closer in time than a few of them share part of their error.
+    /// `None`: visits independent.
+    pub nav_tau_s: Option<[f64; 2]>,
 }
 
 /// Column of `effect` in [`Observation::signature`].
@@ -283,6 +287,13 @@ impl ObservationSet {
     /// Checks every index and number the statistics rely on; the error names the observation
     /// or visit and the field.
     pub fn validate(&self) -> Result<()> {
+        if let Some(tau) = self.nav_tau_s {
+            if tau.iter().any(|t| !t.is_finite() || *t <= 0.0) {
+                return Err(invalid(format!(
+                    "nav_tau_s = {tau:?} (must be finite and > 0)"
+                )));
+            }
+        }
         for (v, visit) in self.visits.iter().enumerate() {
             if visit.reference >= self.reference_ids.len() {
                 return Err(invalid(format!(
@@ -400,6 +411,9 @@ pub(crate) mod synthetic {
         pub twin: Option<(Effect, Effect)>,
         /// Amplitude (m) of an out-of-model residual periodic in range (period 12 m).
         pub range_cyclic_m: f64,
+        /// Navigation errors correlated across visits (Gauss-Markov, position and attitude
+        /// correlation times, s); also what the drawn set declares.
+        pub nav_tau_s: Option<[f64; 2]>,
     }
 
     impl Default for Scenario {
@@ -414,6 +428,7 @@ pub(crate) mod synthetic {
                 truth: Vec::new(),
                 twin: None,
                 range_cyclic_m: 0.0,
+                nav_tau_s: None,
             }
         }
     }
@@ -457,6 +472,7 @@ pub(crate) mod synthetic {
         let mut set = ObservationSet {
             reference_ids: (0..s.references).map(|r| format!("P{r}")).collect(),
             passes: s.passes,
+            nav_tau_s: s.nav_tau_s,
             ..Default::default()
         };
         let att2 = s.sigma_att_rad * s.sigma_att_rad;
@@ -532,15 +548,52 @@ pub(crate) mod synthetic {
         set
     }
 
+    /// Navigation errors of every visit from one Gauss-Markov process per component sampled at
+    /// the visits' mean times (unit-variance AR(1) scaled by each visit's sigma).
+    fn gauss_markov(set: &ObservationSet, tau: [f64; 2], rng: &mut ChaCha8Rng) -> Vec<[f64; 6]> {
+        let mut t = vec![0.0; set.visits.len()];
+        let mut n = vec![0.0; set.visits.len()];
+        for o in &set.observations {
+            t[o.visit] += o.covariates.time_s;
+            n[o.visit] += 1.0;
+        }
+        for (t, n) in t.iter_mut().zip(&n) {
+            *t /= f64::max(*n, 1.0);
+        }
+        let mut order: Vec<usize> = (0..set.visits.len()).collect();
+        order.sort_by(|&a, &b| t[a].total_cmp(&t[b]).then(a.cmp(&b)));
+        let mut z = vec![[0.0; 6]; set.visits.len()];
+        let mut u = [0.0; 6];
+        let mut previous: Option<f64> = None;
+        for v in order {
+            for (k, uk) in u.iter_mut().enumerate() {
+                let e = normal(rng);
+                *uk = match previous {
+                    Some(tp) => {
+                        let r = (-(t[v] - tp) / tau[k / 3]).exp();
+                        r * *uk + (1.0 - r * r).sqrt() * e
+                    }
+                    None => e,
+                };
+                z[v][k] = set.visits[v].nav_cov[k][k].sqrt() * *uk;
+            }
+            previous = Some(t[v]);
+        }
+        z
+    }
+
     /// Draws new residuals (navigation errors, white noise) for the same returns: the
     /// injected effects and the out-of-model term of `s` plus fresh noise from `seed`.
     pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let z: Vec<[f64; 6]> = set
-            .visits
-            .iter()
-            .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
-            .collect();
+        let z = match s.nav_tau_s {
+            None => set
+                .visits
+                .iter()
+                .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
+                .collect(),
+            Some(tau) => gauss_markov(set, tau, &mut rng),
+        };
         for o in &mut set.observations {
             let systematic: f64 = s
                 .truth

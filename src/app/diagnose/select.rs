@@ -5,7 +5,7 @@
 //! `effect` | `none` | `unexplained` (docs/conventions.md §8; method: docs/diagnosis.md,
 //! "Statistics").
 
-use super::fit::{CatalogueNormals, Fit, Normals, Split};
+use super::fit::{Fit, Normals, Split};
 use super::metrics::{chi2_sf, holm_adjusted, normal_sf};
 use super::model::{Effect, ObservationSet, Theta, N_EFFECTS};
 use crate::Result;
@@ -137,10 +137,7 @@ pub fn observability(
     refs: &[usize],
     effects: &[Effect],
 ) -> Result<Observability> {
-    Ok(observability_of(
-        &CatalogueNormals::new(set)?.on(refs),
-        effects,
-    ))
+    Ok(observability_of(&Normals::of(set, refs)?, effects))
 }
 
 pub(crate) fn observability_of(normals: &Normals, effects: &[Effect]) -> Observability {
@@ -509,9 +506,8 @@ fn extend(
 /// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
 /// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default).
 pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selection> {
-    let normals = CatalogueNormals::new(set)?;
-    let fit_n = normals.on(&split.fit);
-    let held = normals.on(&split.held_out);
+    let fit_n = Normals::of(set, &split.fit)?;
+    let held = Normals::of(set, &split.held_out)?;
     let observability = observability_of(&fit_n, &Effect::ALL);
     let null_chi2 = held.chi2_null();
     let null = NullTest::new(null_chi2, held.n, alpha);
@@ -689,6 +685,45 @@ mod tests {
         assert!(sel.observability.groups.is_empty() && sel.candidates.is_empty());
         assert_eq!(sel.verdict, Verdict::Unexplained);
         assert!(sel.effects.is_empty());
+    }
+
+    /// Normalised errors of `effect` (cycling over the catalogue) over `seeds` draws with
+    /// navigation errors correlated across visits; `declare`: whether the set tells the model.
+    fn correlated_errors(seeds: u64, declare: bool) -> Vec<f64> {
+        let tau = Some([60.0, 30.0]);
+        let mut out = Vec::new();
+        for seed in 0..seeds {
+            let effect = Effect::ALL[seed as usize % N_EFFECTS];
+            let base = Scenario {
+                nav_tau_s: tau,
+                ..Default::default()
+            };
+            let mut set = draw(&base, seed);
+            let truth = size_for(&set, effect, 0.02);
+            let s = Scenario {
+                truth: vec![(effect, truth)],
+                ..base
+            };
+            fill_residuals(&mut set, &s, seed + 3000);
+            if !declare {
+                set.nav_tau_s = None;
+            }
+            let f = fit(&set, &split(&set, seed).unwrap().fit, &[effect]).unwrap();
+            out.push((f.estimate[0] - truth) / f.sigma[0]);
+        }
+        out
+    }
+
+    #[test]
+    fn correlated_navigation_errors_keep_sigmas_honest() {
+        let (mean, std) = mean_std(&correlated_errors(120, true));
+        let (_, std_ignored) = mean_std(&correlated_errors(45, false));
+        println!("nav errors correlated across visits (tau 60/30 s): normalised errors mean {mean:.3} std {std:.3}; visits taken as independent: std {std_ignored:.3}");
+        // 120 draws: the sample sd has sd 1/sqrt(240) = 0.065; the mean 0.09 (3 sd: 0.28).
+        assert!((0.8..=1.25).contains(&std), "std {std}");
+        assert!(mean.abs() < 0.28, "mean {mean}");
+        // Taking the visits as independent understates the sigmas.
+        assert!(std_ignored > 1.25, "{std_ignored}");
     }
 
     #[test]
