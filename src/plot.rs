@@ -14,7 +14,6 @@
 //! # Ok(()) }
 //! ```
 
-use std::io::Write;
 use std::path::Path;
 
 use crate::{Error, Result};
@@ -211,16 +210,7 @@ impl Plot {
     pub fn save_png(&self, path: impl AsRef<Path>) -> Result<()> {
         let path = path.as_ref();
         let bytes = self.render()?.png_bytes()?;
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        let io = |e| Error::io(path, e);
-        let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(io)?;
-        tmp.write_all(&bytes).map_err(io)?;
-        tmp.as_file().sync_all().map_err(io)?;
-        tmp.persist(path).map_err(|e| io(e.error))?;
-        Ok(())
+        crate::io::atomic::write_atomic(path, &bytes)
     }
 
     /// Draws the plot. Errors when there is no finite data, a histogram has 0 bins, a fixed

@@ -29,6 +29,7 @@ use super::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
 use super::files::{self, CsvTable};
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
+use crate::io::atomic::{write_atomic, write_json};
 use crate::io::paths::{check_collisions, in_out_dir};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
@@ -755,7 +756,7 @@ pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<B
     )?;
     let sites = config_sites(&cfg, config_path, &setup)?;
     let report = estimate_boresight(&sites, &setup)?;
-    files::write_json(&out_dir.join("boresight.json"), &report)?;
+    write_json(&out_dir.join("boresight.json"), &report)?;
     let mut csv = String::from("site,apex_x_s_m,apex_y_s_m,apex_z_s_m,d1_m,d2_m,d3_m,res_leg1_deg,res_leg2_deg,res_leg3_deg\n");
     for s in &report.sites {
         let [x, y, z] = s.apex_s_m;
@@ -766,6 +767,6 @@ pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<B
             s.site
         );
     }
-    files::write_atomic(&out_dir.join("boresight_sites.csv"), csv.as_bytes())?;
+    write_atomic(&out_dir.join("boresight_sites.csv"), csv.as_bytes())?;
     Ok(report)
 }

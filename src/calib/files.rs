@@ -14,7 +14,6 @@
 //! - tripod sites: `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,
 //!   sigma_heading_deg` (IMU attitude averaged over the static scan).
 
-use crate::io::atomic::AtomicFile;
 use crate::{Error, Result};
 use serde::de::DeserializeOwned;
 use std::path::{Path, PathBuf};
@@ -53,24 +52,6 @@ pub fn resolve(config_path: &Path, file: &Path) -> PathBuf {
     } else {
         config_path.parent().unwrap_or(Path::new(".")).join(file)
     }
-}
-
-/// Writes `bytes` to `path` atomically (creating its directory; the shared
-/// [`AtomicFile`]: temp file in the same directory, synced, then renamed).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    }
-    let mut f = AtomicFile::create(path)?;
-    f.write_all(bytes)?;
-    f.commit()
-}
-
-/// Serialises `value` as pretty JSON into `path` atomically.
-pub fn write_json<T: serde::Serialize>(path: &Path, value: &T) -> Result<()> {
-    let text = serde_json::to_string_pretty(value)
-        .map_err(|e| Error::Invalid(format!("{}: JSON encoding: {e}", path.display())))?;
-    write_atomic(path, text.as_bytes())
 }
 
 /// A CSV table read whole: column names and rows of fields with their 1-based line numbers.

@@ -17,6 +17,7 @@
 use super::files::{self, CsvTable};
 use super::sphere::{fit_sphere_robust, SphereFit, SphereRadius};
 use crate::geo::rotations::{q_b_to_n, r_zyx};
+use crate::io::atomic::{write_atomic, write_json};
 use crate::io::paths::{check_collisions, in_out_dir};
 use crate::io::profiles_csv::ProfileCsvReader;
 use crate::plot::Plot;
@@ -638,9 +639,15 @@ pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<Lat
         attitude: read_attitude(&attitude)?,
     };
     let report = estimate_latency(&data, &setup)?;
+    write_json(&out_dir.join("latency.json"), &report)?;
+    write_atomic(
+        &out_dir.join("latency_by_speed.csv"),
+        speed_table_csv(&report).as_bytes(),
+    )?;
+    latency_plot(&report).save_png(out_dir.join("latency_by_speed.png"))?;
     let [json, csv, png] = OUTPUT_FILES.map(|n| out_dir.join(n));
-    files::write_json(&json, &report)?;
-    files::write_atomic(&csv, speed_table_csv(&report).as_bytes())?;
+    write_json(&json, &report)?;
+    write_atomic(&csv, speed_table_csv(&report).as_bytes())?;
     latency_plot(&report).save_png(png)?;
     Ok(report)
 }

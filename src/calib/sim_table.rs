@@ -15,10 +15,11 @@
 //! below the paper's Table 2, while 5 mm gives ~80 % of Table 2's centre STD and 0.087 ms
 //! latency sigma at 18 deg/s against the paper's 0.09 ms).
 
-use super::files::{self, write_atomic};
+use super::files;
 use super::latency::{beam_s, AttitudeSample, LatencyData, LatencySetup, TablePass, TimedReturn};
 use super::sphere::{ray_sphere_range, SphereRadius};
 use crate::geo::rotations::{r_b_to_n, r_zyx, roll_pitch_heading, wrap_two_pi};
+use crate::io::atomic::{write_atomic, write_json};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Unit, UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -373,7 +374,7 @@ pub fn write_table_run(sc: &TableScenario, data: &LatencyData, out_dir: &Path) -
         sc.seed, sc.table_axis_n, sc.sphere_radius_m, c.x, c.y, c.z, sc.boresight_deg, sc.lever_arm_b_m
     );
     write_atomic(&out_dir.join("calib_latency.toml"), cfg.as_bytes())?;
-    files::write_json(
+    write_json(
         &out_dir.join("truth.json"),
         &serde_json::json!({
             "latency_s": sc.latency_ms * 1e-3,

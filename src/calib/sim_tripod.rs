@@ -16,8 +16,9 @@
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
 use super::ellipse::{beam, CutShape};
-use super::files::{self, write_atomic};
+use super::files;
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
+use crate::io::atomic::{write_atomic, write_json};
 use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
@@ -375,7 +376,7 @@ const ANGLES: [&str; 3] = ["roll", "pitch", "heading"];
 pub fn write_monte_carlo_outputs(out_dir: &Path, mc: &MonteCarloSummary) -> Result<()> {
     let mm = mc.sigma_centre_m * 1e3;
     let tag = format!("boresight_mc_{mm}mm");
-    files::write_json(&out_dir.join(format!("{tag}.json")), mc)?;
+    write_json(&out_dir.join(format!("{tag}.json")), mc)?;
     let mut s = String::from("trial,roll_error_deg,pitch_error_deg,heading_error_deg\n");
     for (i, e) in mc.errors_deg.iter().enumerate() {
         let _ = writeln!(s, "{i},{:.8},{:.8},{:.8}", e[0], e[1], e[2]);
@@ -482,7 +483,7 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
         cfg_scans.as_bytes(),
     )?;
     let truth = zyx_angles(&sc.true_r_s_to_b());
-    files::write_json(
+    write_json(
         &out_dir.join("truth.json"),
         &serde_json::json!({
             "misalignment_deg": sc.misalignment_deg,

@@ -12,14 +12,12 @@
 //! our own encoder for speed. Output bytes depend only on the points and the configuration (no
 //! clock, no randomness), so the same points give the same file however they are chunked.
 
-use std::fs::File;
-use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use las::raw::vlr::RecordLength;
 use las::Version;
-use tempfile::NamedTempFile;
 
+use crate::io::atomic::AtomicFile;
 use crate::{Error, Result};
 
 /// Most extra dimensions a [`PointLayout`] can carry (the size of [`LasPoint::extra`]).
@@ -550,7 +548,7 @@ pub struct LasSummary {
 pub struct LasWriter {
     path: PathBuf,
     config: LasWriterConfig,
-    file: BufWriter<NamedTempFile>,
+    file: AtomicFile,
     stats: ChunkStats,
     offset_to_points: u32,
     scratch: Vec<u8>,
@@ -562,22 +560,9 @@ impl LasWriter {
         let path = path.as_ref().to_path_buf();
         check_ascii_field("system identifier", &config.system_identifier, 0)?;
         let vlrs = vlr_bytes(&config)?;
-        let dir = match path.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        let file_name = path.file_name().ok_or_else(|| {
-            Error::bad_file(&path, "LAS output path has no file name".to_string())
-        })?;
-        let tmp = tempfile::Builder::new()
-            .prefix(&format!(".{}.", file_name.to_string_lossy()))
-            .suffix(".tmp")
-            .tempfile_in(&dir)
-            .map_err(|e| Error::io(&path, e))?;
-        let mut file = BufWriter::with_capacity(WRITE_BUFFER_BYTES, tmp);
-        let io = |e| Error::io(&path, e);
-        file.write_all(&[0u8; HEADER_SIZE]).map_err(io)?;
-        file.write_all(&vlrs).map_err(io)?;
+        let mut file = AtomicFile::with_capacity(&path, WRITE_BUFFER_BYTES)?;
+        file.write_all(&[0u8; HEADER_SIZE])?;
+        file.write_all(&vlrs)?;
         let offset_to_points = u32::try_from(HEADER_SIZE + vlrs.len())
             .map_err(|_| Error::Invalid("LAS VLRs too large".into()))?;
         let record_len = config.layout.record_len;
@@ -604,9 +589,7 @@ impl LasWriter {
                 stats.record_len
             )));
         }
-        self.file
-            .write_all(bytes)
-            .map_err(|e| Error::io(&self.path, e))?;
+        self.file.write_all(bytes)?;
         self.stats.merge(stats);
         Ok(())
     }
@@ -627,23 +610,16 @@ impl LasWriter {
         let LasWriter {
             path,
             config,
-            file,
+            mut file,
             stats,
             offset_to_points,
             ..
         } = self;
-        let io = |e| Error::io(&path, e);
-        let mut tmp = file.into_inner().map_err(|e| io(e.into_error()))?;
         let summary = summarise(&path, &config.layout, &stats, offset_to_points);
         let header = header_bytes(&config, &stats, &summary, offset_to_points)
             .map_err(|e| Error::bad_file(&path, e))?;
-        let f: &mut File = tmp.as_file_mut();
-        f.seek(SeekFrom::Start(0)).map_err(io)?;
-        f.write_all(&header).map_err(io)?;
-        crate::io::atomic::publish_permissions(f).map_err(io)?;
-        f.sync_all().map_err(io)?;
-        tmp.persist(&path).map_err(|e| io(e.error))?;
-        sync_parent_dir(&path);
+        file.write_at(0, &header)?;
+        file.commit()?;
         Ok(summary)
     }
 }
@@ -796,13 +772,4 @@ fn extra_bytes_descriptor(dim: &ExtraDim) -> [u8; EXTRA_BYTES_DESCRIPTOR_LEN] {
     d[4..36].copy_from_slice(&fixed_32(&dim.name));
     d[160..192].copy_from_slice(&fixed_32(&dim.description));
     d
-}
-
-/// Makes the rename durable (best effort: not every platform can fsync a directory).
-fn sync_parent_dir(path: &Path) {
-    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        if let Ok(d) = File::open(dir) {
-            let _ = d.sync_all();
-        }
-    }
 }

@@ -1,7 +1,7 @@
 //! The JSON run report: what was read (sizes, hashes), every parameter used, what happened to
 //! every return (read = written + rejected by reason), time spans and stage timings.
 
-use crate::io::atomic::write_atomic;
+use crate::io::atomic::write_json;
 use crate::pipeline::config::PipelineConfig;
 use crate::{Error, Result};
 use serde::Serialize;
@@ -213,8 +213,6 @@ pub fn peak_rss_bytes() -> Option<u64> {
 impl RunReport {
     /// Writes the report as pretty JSON, atomically.
     pub fn write(&self, path: &Path) -> Result<()> {
-        let json =
-            serde_json::to_vec_pretty(self).map_err(|e| Error::Invalid(format!("report: {e}")))?;
-        write_atomic(path, &json)
+        write_json(path, self)
     }
 }

@@ -15,7 +15,7 @@ use super::scene::Shape;
 use super::world::World;
 use super::{files, SimSummary};
 use crate::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
-use crate::io::atomic::{write_atomic, AtomicFile};
+use crate::io::atomic::{write_json, AtomicFile};
 use crate::io::patches::{write_patches, PlanarPatch};
 use crate::io::points::{write_control_points, ControlPoint};
 use crate::{Error, Result};
@@ -293,6 +293,5 @@ pub(crate) fn write_truth_json(
         },
         "truth_points_layout": "64-byte header (magic KSTRUTH1, u32 version 1, u32 record bytes 24, u32 flags, u32 reserved, u64 count, 32 reserved); per return in profiles.bin order: f64 x, y, z ECEF (m), NaN when missing",
     });
-    let text = serde_json::to_string_pretty(&doc).map_err(|e| Error::Invalid(e.to_string()))?;
-    write_atomic(&out_dir.join(files::TRUTH_JSON), text.as_bytes())
+    write_json(&out_dir.join(files::TRUTH_JSON), &doc)
 }

@@ -14,7 +14,7 @@ use super::propagate::UncertaintyInputs;
 use super::sobol::{FactorIndices, SaltelliDesign, SobolIndices, N_OUT};
 use crate::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, r_n_to_e, Geodetic};
 use crate::geo::rotations::r_zyx;
-use crate::io::atomic::write_atomic;
+use crate::io::atomic::{write_atomic, write_json};
 use crate::io::profiles::ProfileFile;
 use crate::pipeline::config::UncertaintyConfig;
 use crate::plot::{Plot, PALETTE};
@@ -396,9 +396,7 @@ pub fn run_sensitivity_config(
     report.outputs.extend(plots);
     let json = out_dir.join("sensitivity.json");
     report.outputs.push(json.clone());
-    let text = serde_json::to_string_pretty(&report)
-        .map_err(|e| Error::Invalid(format!("cannot serialise the report: {e}")))?;
-    write_atomic(&json, text.as_bytes())?;
+    write_json(&json, &report)?;
     Ok(report)
 }
 

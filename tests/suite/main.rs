@@ -19,6 +19,7 @@ mod fuzz;
 mod geodesy;
 mod geodesy_local;
 mod geoid;
+mod io_atomic;
 mod io_bad_input;
 mod io_info;
 mod io_profiles_csv;
