@@ -1,12 +1,16 @@
-//! End-to-end throughput: `kinescan run` from a memory-mapped binary profile file to LAS on
-//! disk, with 1 and 2 threads, without uncertainty, with the default uncertainty fields
-//! (sigma_x/y/z) and with all of them (plus thu95/tvu95 and the six shares). Not a criterion
-//! bench: whole runs on a large file, interleaved and repeated, medians of the returns/s and
-//! peak RSS from the run reports and of the wall time.
+//! End-to-end throughput against the machine's I/O floor: `kinescan run` from a memory-mapped
+//! binary profile file to LAS on disk, with 1 and 2 threads, without uncertainty, with the
+//! default uncertainty fields (sigma_x/y/z) and with all of them (plus thu95/tvu95 and the six
+//! shares), alternated with the I/O floor on the same input: one process that reads every
+//! input file once (4 MiB reads) and writes as many bytes as the run's LAS to a new file, then
+//! fsyncs it. Not a criterion bench: whole-process runs on a large file, interleaved in every
+//! repetition (floor, then the six runs), medians of the wall times, of the returns/s and peak
+//! RSS from the run reports, and of the per-repetition ratios with their min-max spread (the
+//! machine's noise).
 //!
 //! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
 //! `KINESCAN_BENCH_REPS` to change them; `KINESCAN_BENCH_DIR=DIR` to keep the generated survey
-//! for profiling.
+//! for profiling. See docs/performance.md.
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
@@ -97,6 +101,56 @@ fn write_profiles(path: &Path, n: u64) {
     w.finish().unwrap();
 }
 
+/// The inputs the floor reads: every file the pipelines read.
+const INPUTS: [&str; 3] = ["t.sbet", "t.smrmsg", "p.ksprof"];
+/// The floor's read size (bytes).
+const FLOOR_READ_BYTES: usize = 4 << 20;
+/// Set (to the byte count) in the re-executed bench process that measures the floor.
+const FLOOR_ENV: &str = "KINESCAN_BENCH_FLOOR_BYTES";
+
+/// The I/O floor's body, run in its own process: read `INPUTS` in `dir` once, write
+/// `out_bytes` to `dir/out/floor.bin` (new file) and fsync it.
+fn floor_body(dir: &Path, out_bytes: u64) {
+    use std::io::{Read, Write};
+    let mut buf = vec![0u8; FLOOR_READ_BYTES];
+    let mut read = 0u64;
+    for name in INPUTS {
+        let mut f = std::fs::File::open(dir.join(name)).unwrap();
+        loop {
+            let n = f.read(&mut buf).unwrap();
+            if n == 0 {
+                break;
+            }
+            read += n as u64;
+        }
+    }
+    // Write what was read (not a constant page) so nothing can shortcut the copy.
+    let mut out = std::fs::File::create_new(dir.join("out/floor.bin")).unwrap();
+    let mut left = out_bytes;
+    while left > 0 {
+        let n = left.min(buf.len() as u64) as usize;
+        out.write_all(&buf[..n]).unwrap();
+        left -= n as u64;
+    }
+    out.sync_all().unwrap();
+    assert!(read > 0);
+}
+
+/// One timed floor process: whole wall time s (process start to exit, as for the runs).
+fn floor_once(dir: &Path, out_bytes: u64) -> f64 {
+    let _ = std::fs::remove_file(dir.join("out/floor.bin"));
+    let started = std::time::Instant::now();
+    let status = Command::new(std::env::current_exe().unwrap())
+        .env(FLOOR_ENV, out_bytes.to_string())
+        .current_dir(dir)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let wall = started.elapsed().as_secs_f64();
+    std::fs::remove_file(dir.join("out/floor.bin")).unwrap();
+    wall
+}
+
 /// One timed run: (returns/s georeferenced, whole wall time s, peak RSS MB).
 fn run_once(dir: &Path, file: &str, threads: usize) -> (f64, f64, f64) {
     // Each run starts from the same state: replacing a multi-GB LAS still in the page cache
@@ -123,7 +177,24 @@ fn median(mut v: Vec<f64>) -> f64 {
     (v[(n - 1) / 2] + v[n / 2]) / 2.0
 }
 
+/// `(median, min, max)` of per-repetition ratios `a[i] / b[i]`.
+fn ratio_stats(a: &[f64], b: &[f64]) -> (f64, f64, f64) {
+    let r: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
+    let lo = r.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = r.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    (median(r), lo, hi)
+}
+
+fn fmt_ratio((med, lo, hi): (f64, f64, f64)) -> String {
+    format!("{med:.2}x [{lo:.2}-{hi:.2}]")
+}
+
 fn main() {
+    if let Some(bytes) = std::env::var_os(FLOOR_ENV) {
+        let bytes = bytes.to_str().unwrap().parse().unwrap();
+        floor_body(&std::env::current_dir().unwrap(), bytes);
+        return;
+    }
     let n: u64 = std::env::var("KINESCAN_BENCH_RETURNS")
         .ok()
         .and_then(|v| v.parse().ok())
@@ -154,29 +225,54 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
+    // The floor writes as many bytes as the run without uncertainty (the 3.0x criterion's run).
+    run_once(dir, "pipeline.toml", 2);
+    let las_bytes = std::fs::metadata(dir.join("out/cloud.las")).unwrap().len();
+    let input_bytes: u64 = INPUTS
+        .iter()
+        .map(|f| std::fs::metadata(dir.join(f)).unwrap().len())
+        .sum();
     println!(
-        "end_to_end: {n} returns ({:.1} GB profile file), median of {reps} interleaved runs",
-        n as f64 * 40.0 / 1e9
+        "end_to_end: {n} returns ({:.2} GB input, {:.2} GB LAS without uncertainty), \
+         medians of {reps} interleaved repetitions; [min-max] of the per-repetition ratios",
+        input_bytes as f64 / 1e9,
+        las_bytes as f64 / 1e9
     );
     let files = ["pipeline.toml", "uncertainty.toml", "all_fields.toml"];
-    for threads in [1, 2] {
-        let mut runs = vec![Vec::new(); files.len()];
-        for _ in 0..reps {
-            for (k, file) in files.iter().enumerate() {
-                runs[k].push(run_once(dir, file, threads));
-            }
+    let configs: Vec<(usize, &str)> = [1, 2]
+        .into_iter()
+        .flat_map(|t| files.iter().map(move |f| (t, *f)))
+        .collect();
+    let mut floor = Vec::new();
+    let mut runs = vec![Vec::new(); configs.len()];
+    for _ in 0..reps {
+        floor.push(floor_once(dir, las_bytes));
+        for (k, (threads, file)) in configs.iter().enumerate() {
+            runs[k].push(run_once(dir, file, *threads));
         }
-        let base_wall = median(runs[0].iter().map(|r| r.1).collect());
-        for (file, r) in files.iter().zip(&runs) {
-            let rps = median(r.iter().map(|r| r.0).collect());
-            let wall = median(r.iter().map(|r| r.1).collect());
-            let rss = median(r.iter().map(|r| r.2).collect());
-            println!(
-                "{file}, {threads} thread(s): {:.2} M returns/s georeferenced, {wall:.2} s for \
-                 the whole run ({:+.0}% vs pipeline.toml), peak RSS {rss:.0} MB",
-                rps / 1e6,
-                (wall / base_wall - 1.0) * 100.0
-            );
-        }
+    }
+    println!("I/O floor: {:.3} s", median(floor.clone()));
+    let walls: Vec<Vec<f64>> = runs
+        .iter()
+        .map(|r| r.iter().map(|r| r.1).collect())
+        .collect();
+    for (k, ((threads, file), r)) in configs.iter().zip(&runs).enumerate() {
+        let base = k - k % files.len();
+        let rps = median(r.iter().map(|r| r.0).collect());
+        let rss = median(r.iter().map(|r| r.2).collect());
+        println!(
+            "{file}, {threads} thread(s): {:.3} s, {:.2} M returns/s georeferenced, \
+             run/floor {}, vs pipeline.toml {}, peak RSS {rss:.0} MB",
+            median(walls[k].clone()),
+            rps / 1e6,
+            fmt_ratio(ratio_stats(&walls[k], &floor)),
+            fmt_ratio(ratio_stats(&walls[k], &walls[base])),
+        );
+    }
+    for (k, file) in files.iter().enumerate() {
+        println!(
+            "{file}: 2 threads / 1 thread speed-up {}",
+            fmt_ratio(ratio_stats(&walls[k], &walls[k + files.len()]))
+        );
     }
 }
