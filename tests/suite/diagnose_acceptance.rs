@@ -65,13 +65,13 @@ pub fn simulate_case(dir: &Path, effects: &str, seed: u64) {
 }
 
 /// Diagnoses the survey in `dir`.
-pub fn diagnose_dir(dir: &Path) -> Diagnosis {
-    let p = config::load(&dir.join("pipeline.toml"), &[]).unwrap();
+pub fn diagnose_dir(dir: &Path) -> kinescan::Result<Diagnosis> {
+    let p = config::load(&dir.join("pipeline.toml"), &[])?;
     let req = Request {
         patches: dir.join("survey/patches.csv"),
         out_dir: dir.join("diagnosis"),
     };
-    diagnose::run(&p, &req).unwrap()
+    diagnose::run(&p, &req)
 }
 
 /// Scores diagnosis `d` against `expect`.
@@ -150,7 +150,17 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
         .map(|seed| {
             let dir = tempfile::tempdir().unwrap();
             simulate_case(dir.path(), &case.effects_toml, seed);
-            let d = diagnose_dir(dir.path());
+            let d = match diagnose_dir(dir.path()) {
+                Ok(d) => d,
+                Err(e) => {
+                    // Counted as a failure of every rate, with the reason printed.
+                    println!("  {} seed {seed}: error: {e}", case.label);
+                    return Score {
+                        closed: f64::NAN,
+                        ..Default::default()
+                    };
+                }
+            };
             let s = score(&d, &case.expect);
             println!(
                 "  {} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.2} -> {:.2} located {:?}",
@@ -176,7 +186,9 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
     let var =
         errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (errors.len().max(2) - 1) as f64;
     let mut closed: Vec<f64> = scores.iter().map(|s| s.closed).collect();
+    closed.retain(|c| c.is_finite());
     closed.sort_by(f64::total_cmp);
+    closed.push(f64::NAN); // the median of none is NaN
     Row {
         label: case.label.clone(),
         seeds: scores.len(),
@@ -185,7 +197,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
         within_2_sigma: errors.iter().filter(|e| e.abs() < 2.0).count() as f64
             / errors.len().max(1) as f64,
         normalised_std: var.sqrt(),
-        closed_median: closed[closed.len() / 2],
+        closed_median: closed[(closed.len() - 1) / 2],
         located: share(&|s| s.located_ok),
     }
 }

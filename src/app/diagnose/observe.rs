@@ -531,6 +531,8 @@ fn second_pass(
     let mut set = ObservationSet {
         reference_ids,
         passes: files.len(),
+        // The navigation errors are shared between visits closer than a few of these.
+        nav_tau_s: Some(models[0].nav_tau_s),
         ..Default::default()
     };
     for r in per_visit {
