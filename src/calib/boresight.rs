@@ -27,6 +27,7 @@
 
 use super::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
 use super::files::{self, CsvTable};
+pub use super::tripod::BoresightSetup;
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
 use crate::io::atomic::{write_atomic, write_json};
@@ -61,17 +62,6 @@ pub struct TripodSite {
     pub attitude_rad: [f64; 3],
     /// 1-sigma of the attitude angles (rad).
     pub sigma_attitude_rad: [f64; 3],
-}
-
-/// The tripod and the prior.
-#[derive(Debug, Clone, PartialEq)]
-pub struct BoresightSetup {
-    /// Cosines of the inter-leg angles for leg pairs (1,2), (1,3), (2,3).
-    pub cos_leg_angles: [f64; 3],
-    /// Unit tripod axis (apex towards feet) in NED.
-    pub tripod_axis_n: Vector3<f64>,
-    /// Nominal boresight `R_nom` (SPEC `R_s^b` before calibration).
-    pub r_nominal_s_to_b: Matrix3<f64>,
 }
 
 /// Per-site diagnostics.

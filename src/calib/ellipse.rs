@@ -33,8 +33,7 @@
 //! Range noise only: the covariance ignores beam-angle noise and the leg radius's tolerance
 //! (a radius error of `dr` shifts every centre by ~`dr` along the mean beam).
 
-use super::boresight::BoresightSetup;
-use super::tripod::solve_site;
+use super::tripod::{solve_site, BoresightSetup};
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 

@@ -23,6 +23,18 @@
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector2, Vector3};
 
+/// The tripod and the boresight prior (shared by the leg fit in `ellipse` and the
+/// adjustment in `boresight`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BoresightSetup {
+    /// Cosines of the inter-leg angles for leg pairs (1,2), (1,3), (2,3).
+    pub cos_leg_angles: [f64; 3],
+    /// Unit tripod axis (apex towards feet) in NED.
+    pub tripod_axis_n: Vector3<f64>,
+    /// Nominal boresight `R_nom` (SPEC `R_s^b` before calibration).
+    pub r_nominal_s_to_b: Matrix3<f64>,
+}
+
 /// Leg pairs of the cosine-law equations: (1,2), (1,3), (2,3) as 0-based indices.
 pub const LEG_PAIRS: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 

@@ -6,7 +6,7 @@
 //! sensor in `SensorTruth::new`, scanner clock in `ScanClock`, navigation solution in
 //! `nav::NavSolution`). docs/simulator.md lists the catalogue.
 
-use super::scenario::Checker;
+use super::checker::Checker;
 use serde::{Deserialize, Serialize};
 
 /// The catalogue of systematic effects; `None` = off.

@@ -8,6 +8,7 @@
 //! from (seed, profile number), and written in order, so files are byte-identical for any
 //! thread count.
 
+mod checker;
 pub mod dynamics;
 pub mod effects;
 pub mod nav;
