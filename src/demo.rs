@@ -82,7 +82,6 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
     let loaded = config::load(&pipeline, &[])?;
     let report = run(&loaded, run_opts)?;
     let report_path = loaded.config.output.report_path();
-    report.write(&report_path)?;
     let traj = Trajectory::open(
         &loaded.config.inputs.sbet,
         None,

@@ -64,6 +64,9 @@ pub enum Error {
         /// "is the same file as the input" or "... output".
         problem: String,
     },
+    /// SIGINT or SIGTERM stopped the command ([`crate::interrupt`]).
+    #[error("interrupted (SIGINT or SIGTERM): nothing published, temporary files removed")]
+    Interrupted,
     /// Arguments that cannot be processed (not tied to one file).
     #[error("{0}")]
     Invalid(String),

@@ -12,6 +12,7 @@ pub mod demo;
 pub mod error;
 pub mod geo;
 pub mod georef;
+pub mod interrupt;
 pub mod io;
 pub mod pipeline;
 pub mod plot;

@@ -50,6 +50,13 @@ pub fn calibrate(a: &CalibrateArgs, quiet: bool) -> Result<()> {
             println!("{}", serde_json::to_string_pretty(&v).unwrap_or_default());
         }
     };
+    let job = match &a.what {
+        CalibrateCommand::Latency(j)
+        | CalibrateCommand::Boresight(j)
+        | CalibrateCommand::SimulateTable(j)
+        | CalibrateCommand::SimulateTripod(j) => j,
+    };
+    crate::cli::remove_stale_temps(&job.out)?;
     match &a.what {
         CalibrateCommand::Latency(j) => print(serde_json::to_value(
             latency::run_latency_calibration(&j.config, &j.out)?,

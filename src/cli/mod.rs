@@ -34,6 +34,25 @@ enum Command {
     Diagnose(diagnose_cmd::DiagnoseArgs),
 }
 
+/// Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention).
+const EXIT_INTERRUPTED: u8 = 130;
+
+/// SIGINT and SIGTERM ask the command to stop ([`kinescan::interrupt`]): it unwinds, removing
+/// its temporaries, and exits with [`EXIT_INTERRUPTED`] and a one-line message. A second signal
+/// exits at once (a stage that does not look at the request yet; its temporaries carry the pid
+/// and are removed by the next command writing there).
+fn stop_cleanly_on_signals() {
+    let installed = ctrlc::set_handler(|| {
+        if kinescan::interrupt::request() {
+            eprintln!("error: interrupted twice: stopped at once");
+            std::process::exit(i32::from(EXIT_INTERRUPTED));
+        }
+    });
+    if let Err(e) = installed {
+        eprintln!("warning: SIGINT/SIGTERM will stop kinescan without cleaning up: {e}");
+    }
+}
+
 /// The error and its causes joined by `: `, leaving out a cause whose text is already in the
 /// message (the library's errors carry their OS error's text: printed once, not twice).
 fn message(e: &anyhow::Error) -> String {
@@ -51,6 +70,17 @@ fn message(e: &anyhow::Error) -> String {
     msg
 }
 
+/// Removes the temporaries of dead kinescan processes (killed runs) from `dir`, a folder the
+/// command writes.
+pub(crate) fn remove_stale_temps(dir: &std::path::Path) -> anyhow::Result<()> {
+    let dir = match dir.as_os_str().is_empty() {
+        true => std::path::Path::new("."),
+        false => dir,
+    };
+    kinescan::io::atomic::remove_stale_temps(dir)?;
+    Ok(())
+}
+
 /// `--threads N`: a whole number >= 1.
 pub(crate) fn threads(s: &str) -> Result<usize, String> {
     match s.parse::<usize>() {
@@ -63,6 +93,7 @@ pub(crate) fn threads(s: &str) -> Result<usize, String> {
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
 pub fn run() -> ExitCode {
     let cli = Cli::parse();
+    stop_cleanly_on_signals();
     let result = match &cli.command {
         Command::Run(a) => pipeline_cmds::run(a, cli.quiet),
         Command::Validate(a) => pipeline_cmds::validate(a),
@@ -78,7 +109,14 @@ pub fn run() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", message(&e));
-            ExitCode::FAILURE
+            let interrupted = e
+                .chain()
+                .any(|c| matches!(c.downcast_ref(), Some(kinescan::Error::Interrupted)));
+            if interrupted {
+                ExitCode::from(EXIT_INTERRUPTED)
+            } else {
+                ExitCode::FAILURE
+            }
         }
     }
 }

@@ -70,7 +70,6 @@ pub fn run(a: &RunArgs, quiet: bool) -> Result<()> {
     };
     let report = executor::run(&loaded, &opts)?;
     let report_path = loaded.config.output.report_path();
-    report.write(&report_path)?;
     if !quiet {
         let t = &report.totals;
         println!(
@@ -105,6 +104,7 @@ pub fn import(a: &ImportArgs, quiet: bool) -> Result<()> {
         &[("CSV argument".into(), a.csv.clone())],
         &[("OUTPUT argument".into(), a.output.clone())],
     )?;
+    crate::cli::remove_stale_temps(a.output.parent().unwrap_or(std::path::Path::new(".")))?;
     let s = kinescan::io::profiles_csv::import_csv(&a.csv, &a.output)?;
     if !quiet {
         println!("{}", serde_json::to_string_pretty(&s)?);

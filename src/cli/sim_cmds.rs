@@ -57,6 +57,7 @@ fn progress(quiet: bool, what: &'static str) -> Option<sim::Progress> {
 }
 
 pub fn simulate(a: &SimulateArgs, quiet: bool) -> Result<()> {
+    crate::cli::remove_stale_temps(&a.out)?;
     let opts = SimOptions {
         threads: a.threads,
         progress: progress(quiet, "simulating profiles"),
@@ -78,6 +79,9 @@ pub fn simulate(a: &SimulateArgs, quiet: bool) -> Result<()> {
 }
 
 pub fn demo(a: &DemoArgs, quiet: bool) -> Result<()> {
+    for dir in [a.out.clone(), a.out.join("survey")] {
+        crate::cli::remove_stale_temps(&dir)?;
+    }
     let run = RunOptions {
         threads: a.threads,
         progress: !quiet,

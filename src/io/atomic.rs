@@ -60,6 +60,7 @@ impl AtomicFile {
 
     /// Writes all of `bytes`.
     pub fn write_all(&mut self, bytes: &[u8]) -> Result<()> {
+        crate::interrupt::check()?;
         let result = self.writer().write_all(bytes);
         result.map_err(|e| Error::io(&self.path, e))
     }

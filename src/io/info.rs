@@ -208,9 +208,10 @@ fn detect(path: &Path, size: u64) -> Result<FileKind> {
     if name.ends_with(".smrmsg") || name.starts_with("smrmsg") {
         return Ok(FileKind::Smrmsg);
     }
-    let sbet = size % SBET_RECORD_BYTES as u64 == 0 && plausible(path, SBET_RECORD_BYTES, true)?;
-    let smrmsg =
-        size % SMRMSG_RECORD_BYTES as u64 == 0 && plausible(path, SMRMSG_RECORD_BYTES, false)?;
+    let sbet =
+        size.is_multiple_of(SBET_RECORD_BYTES as u64) && plausible(path, SBET_RECORD_BYTES, true)?;
+    let smrmsg = size.is_multiple_of(SMRMSG_RECORD_BYTES as u64)
+        && plausible(path, SMRMSG_RECORD_BYTES, false)?;
     match (sbet, smrmsg) {
         (true, false) => Ok(FileKind::Sbet),
         (false, true) => Ok(FileKind::Smrmsg),

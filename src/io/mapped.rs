@@ -34,7 +34,7 @@ impl MappedRecords {
             ));
         }
         let body = size - header_bytes;
-        if body % record_bytes != 0 {
+        if !body.is_multiple_of(record_bytes) {
             return Err(Error::bad_file(
                 path,
                 format!(

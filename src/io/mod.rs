@@ -11,6 +11,7 @@ pub mod paths;
 pub mod points;
 pub mod profiles;
 pub mod profiles_csv;
+pub mod publish;
 pub mod sbet;
 pub mod smrmsg;
 pub mod timed;

@@ -226,6 +226,32 @@ pub struct ImportSummary {
     pub columns: ProfileColumns,
     /// Counts, counter range and jumps (jump positions are 1-based CSV lines).
     pub tally: ProfileTally,
+    /// The CSV line of each record of the binary file.
+    #[serde(skip)]
+    pub lines: RecordLines,
+}
+
+/// The 1-based CSV line of each 0-based record of an imported file, so messages about a record
+/// name the user's line. Stored sparsely: `(record, line - record)` wherever the difference
+/// changes (at the first record and after blank lines).
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct RecordLines {
+    steps: Vec<(u64, u64)>,
+}
+
+impl RecordLines {
+    fn push(&mut self, record: u64, line: u64) {
+        let offset = line - record;
+        if self.steps.last().is_none_or(|&(_, o)| o != offset) {
+            self.steps.push((record, offset));
+        }
+    }
+
+    /// The line of `record` (records after the last one continue its numbering).
+    pub fn line_of(&self, record: u64) -> u64 {
+        let k = self.steps.partition_point(|&(r, _)| r <= record);
+        record + k.checked_sub(1).map_or(0, |k| self.steps[k].1)
+    }
 }
 
 impl std::fmt::Display for ImportSummary {
@@ -269,8 +295,10 @@ pub fn import_csv(csv: &Path, bin: &Path) -> Result<ImportSummary> {
     let columns = reader.columns();
     let mut writer = ProfileWriter::create(bin, columns)?;
     let mut tally = ProfileTally::default();
+    let mut lines = RecordLines::default();
     while let Some(r) = reader.next() {
         let r = r?;
+        lines.push(tally.returns, reader.line_no());
         tally.add(&r, reader.line_no());
         writer.push(&r)?;
     }
@@ -278,7 +306,11 @@ pub fn import_csv(csv: &Path, bin: &Path) -> Result<ImportSummary> {
         return Err(Error::bad_file(csv, "no returns after the header"));
     }
     writer.finish()?;
-    Ok(ImportSummary { columns, tally })
+    Ok(ImportSummary {
+        columns,
+        tally,
+        lines,
+    })
 }
 
 /// Converts a binary profile file to CSV (columns as in the binary header); returns the
@@ -372,5 +404,22 @@ impl ProfileCsvWriter {
     pub fn finish(self) -> Result<u64> {
         self.out.commit()?;
         Ok(self.count)
+    }
+}
+
+#[cfg(test)]
+mod record_lines_tests {
+    use super::RecordLines;
+
+    #[test]
+    fn lines_of_records_across_blank_lines() {
+        // Header on line 1, records 0..3 on lines 2..4, a blank line, records 3.. from line 6.
+        let mut m = RecordLines::default();
+        for (record, line) in [(0, 2), (1, 3), (2, 4), (3, 6), (4, 7)] {
+            m.push(record, line);
+        }
+        let lines: Vec<u64> = (0..6).map(|r| m.line_of(r)).collect();
+        assert_eq!(lines, [2, 3, 4, 6, 7, 8]);
+        assert_eq!(m.steps.len(), 2);
     }
 }

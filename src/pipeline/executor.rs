@@ -12,6 +12,7 @@ use crate::geo::rotations::wrap_pi;
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::{ProfileColumns, ProfileFile, RawReturn};
+use crate::io::profiles_csv::RecordLines;
 use crate::timing::ScannerClock;
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory};
 use crate::uncertainty::model::FrameCache;
@@ -261,6 +262,7 @@ impl Georeferencer<'_> {
             PoseCursor::new(self.traj, self.attitude_latency_s, self.position_latency_s);
         let mut local = None;
         let mut batch = vec![LasPoint::default(); ENCODE_BATCH];
+        let mut batch_records = [0usize; ENCODE_BATCH];
         let mut filled = 0;
         let mut sigmas = self
             .uncertainty
@@ -288,9 +290,10 @@ impl Georeferencer<'_> {
                     if let Some(k) = self.slots.return_index {
                         p.extra[k] = i as f64;
                     }
+                    batch_records[filled] = i;
                     filled += 1;
                     if filled == ENCODE_BATCH {
-                        encode_into(&batch, layout, &mut out)?;
+                        encode_into(&batch, &batch_records, layout, &mut out, file)?;
                         filled = 0;
                     }
                     t_min = t_min.min(t);
@@ -302,7 +305,7 @@ impl Georeferencer<'_> {
                 }
             }
         }
-        encode_into(&batch[..filled], layout, &mut out)?;
+        encode_into(&batch[..filled], &batch_records, layout, &mut out, file)?;
         if t_min <= t_max {
             out.time_span_s = Some((t_min, t_max));
         }
@@ -317,11 +320,48 @@ const ENCODE_BATCH: usize = 1024;
 /// exact projection.
 const RECENTRE_M: f64 = 100.0;
 
-/// Encodes `batch`, appending its records and stats to `out`.
-fn encode_into(batch: &[LasPoint], layout: &PointLayout, out: &mut ChunkOut) -> Result<()> {
-    let stats = encode_points(batch, layout, &mut out.records)?;
-    out.stats.merge(&stats);
-    Ok(())
+/// Encodes `batch` (the returns `records` of `file`), appending its records and stats to
+/// `out`. A point that cannot be encoded is named by its record, and a coordinate beyond the
+/// LAS range by the keys that fix it.
+fn encode_into(
+    batch: &[LasPoint],
+    records: &[usize],
+    layout: &PointLayout,
+    out: &mut ChunkOut,
+    file: &ProfileFile,
+) -> Result<()> {
+    match encode_points(batch, layout, &mut out.records) {
+        Ok(stats) => {
+            out.stats.merge(&stats);
+            Ok(())
+        }
+        Err(e) => Err(name_encode_error(e, batch, records, layout, file)),
+    }
+}
+
+fn name_encode_error(
+    e: Error,
+    batch: &[LasPoint],
+    records: &[usize],
+    layout: &PointLayout,
+    file: &ProfileFile,
+) -> Error {
+    let failing = (0..batch.len())
+        .find(|&k| encode_points(&batch[k..=k], layout, &mut Vec::new()).is_err())
+        .unwrap_or(0);
+    let mut problem = e.to_string();
+    if let Some((_, what)) = problem.split_once(" of the chunk: ") {
+        problem = what.to_string();
+    }
+    if problem.contains("beyond what LAS can store") {
+        let p = &batch[failing];
+        let near = [p.x, p.y, p.z].map(|v| (v / 1000.0).round() * 1000.0);
+        problem += &format!(
+            ": set output.offset_m near the data (e.g. [{}, {}, {}]) or a coarser output.scale_m",
+            near[0], near[1], near[2]
+        );
+    }
+    Error::bad_record(file.path(), format!("record {}", records[failing]), problem)
 }
 
 /// Record buffers handed back by the writer for reuse: a fresh multi-megabyte buffer per chunk
@@ -347,7 +387,8 @@ impl BufferPool {
     }
 }
 
-/// Runs a loaded pipeline: georeferences every profile file and writes LAS and the report.
+/// Runs a loaded pipeline: georeferences every profile file and publishes the LAS file(s) and
+/// the report (at `output.report_path()`) as one set.
 pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
     let threads = opts
         .threads
@@ -357,12 +398,13 @@ pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> Result<RunReport> {
         .num_threads(threads)
         .build()
         .map_err(|e| Error::Invalid(format!("cannot start {threads} threads: {e}")))?;
-    pool.install(|| run_in_pool(p, opts, threads))
+    super::publish::publish_run(p, |staged| {
+        pool.install(|| run_in_pool(staged, opts, threads))
+    })
 }
 
 fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<RunReport> {
     let c = &p.config;
-    super::files::check_collisions_of(p)?;
     let mut stages = Vec::new();
     let started = Instant::now();
     let traj_opts = c.trajectory.options();
@@ -387,7 +429,8 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         .prefix(".kinescan-import-")
         .tempdir_in(&out_dir)
         .map_err(|e| Error::io(&out_dir, e))?;
-    let profile_files = open_profiles(&c.inputs.profiles, staging.path())?;
+    let (profile_files, record_lines) =
+        open_profiles_with_lines(&c.inputs.profiles, staging.path())?;
     stages.push(StageTiming {
         stage: "prepare".into(),
         seconds: started.elapsed().as_secs_f64(),
@@ -411,7 +454,8 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
     let mut inputs = Vec::new();
     for (k, (original, file)) in profile_files.iter().enumerate() {
         let psid = c.inputs.first_point_source_id.saturating_add(k as u16);
-        let mut g = georeferencer(p, &traj, &frame, file, psid)?;
+        let user = |e| on_user_line(e, file.path(), original, record_lines[k].as_ref());
+        let mut g = georeferencer(p, &traj, &frame, file, psid).map_err(user)?;
         if let Some(s) = sync.get(k) {
             g.apply_sync(&s.result);
         }
@@ -424,7 +468,8 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
             &mut sink,
             &bar,
             c.output.strictness,
-        )?;
+        )
+        .map_err(user)?;
         inputs.push(report);
     }
     bar.finish_and_clear();
@@ -574,25 +619,54 @@ pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
     }
 }
 
+/// Profile files as named in the pipeline, each with the binary file read.
+type OpenedProfiles = Vec<(PathBuf, ProfileFile)>;
+
 /// Maps binary profile files; CSV files are first imported into `staging`.
-pub fn open_profiles(paths: &[PathBuf], staging: &Path) -> Result<Vec<(PathBuf, ProfileFile)>> {
-    paths
-        .iter()
-        .enumerate()
-        .map(|(k, path)| {
-            let is_csv = path
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-            let file = if is_csv {
-                let bin = staging.join(format!("input{k}.ksprof"));
-                crate::io::profiles_csv::import_csv(path, &bin)?;
-                ProfileFile::open(&bin)?
-            } else {
-                ProfileFile::open(path)?
+pub fn open_profiles(paths: &[PathBuf], staging: &Path) -> Result<OpenedProfiles> {
+    Ok(open_profiles_with_lines(paths, staging)?.0)
+}
+
+/// [`open_profiles`], with the CSV line of every record of each imported file (`None` for a
+/// binary file), to name the user's line in messages ([`on_user_line`]).
+fn open_profiles_with_lines(
+    paths: &[PathBuf],
+    staging: &Path,
+) -> Result<(OpenedProfiles, Vec<Option<RecordLines>>)> {
+    let mut files = Vec::new();
+    let mut lines = Vec::new();
+    for (k, path) in paths.iter().enumerate() {
+        let is_csv = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+        if is_csv {
+            let bin = staging.join(format!("input{k}.ksprof"));
+            let summary = crate::io::profiles_csv::import_csv(path, &bin)?;
+            files.push((path.clone(), ProfileFile::open(&bin)?));
+            lines.push(Some(summary.lines));
+        } else {
+            files.push((path.clone(), ProfileFile::open(path)?));
+            lines.push(None);
+        }
+    }
+    Ok((files, lines))
+}
+
+/// An error about the binary import `file` of the user's CSV file `original` told in the
+/// user's terms: the CSV file and its line instead of the import and its record.
+fn on_user_line(e: Error, file: &Path, original: &Path, lines: Option<&RecordLines>) -> Error {
+    let Some(lines) = lines else { return e };
+    match e {
+        Error::BadRecord { path, at, problem } if path == file => {
+            let at = match at.strip_prefix("record ").map(str::parse::<u64>) {
+                Some(Ok(record)) => format!("line {}", lines.line_of(record)),
+                _ => at,
             };
-            Ok((path.clone(), file))
-        })
-        .collect()
+            Error::bad_record(original, at, problem)
+        }
+        Error::BadFile { path, problem } if path == file => Error::bad_file(original, problem),
+        other => other,
+    }
 }
 
 fn georeferencer<'a>(
@@ -740,13 +814,8 @@ impl<'f> FileAccumulator<'f> {
         bar: &indicatif::ProgressBar,
     ) -> Result<Vec<u8>> {
         let path = self.file.path();
-        let out = out.map_err(|e| {
-            Error::bad_record(
-                path,
-                format!("records {}..{}", r.start, r.end),
-                e.to_string(),
-            )
-        })?;
+        // A chunk's error names the file and record already.
+        let out = out?;
         self.tracker.absorb(path, r.start, &out)?;
         if self.strictness == Strictness::Fail {
             if let Some((i, reason)) = out.first_reject {

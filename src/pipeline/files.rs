@@ -38,7 +38,7 @@ pub fn per_input_part(las: &Path, stem: &str, profile: &Path) -> PathBuf {
 }
 
 /// Every input of a pipeline: the pipeline file, trajectory, accuracy, profile, sync point and
-/// target files.
+/// target files, diagnosis reference patches.
 pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
     let c = &p.config;
     let mut v = vec![
@@ -56,6 +56,9 @@ pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
         if let Some(t) = &sy.targets {
             v.push(("sync.targets".into(), t.clone()));
         }
+    }
+    if let Some(patches) = c.diagnose.as_ref().and_then(|d| d.patches.as_ref()) {
+        v.push(("diagnose.patches".into(), patches.clone()));
     }
     v
 }

@@ -9,5 +9,6 @@
 pub mod config;
 pub mod executor;
 pub mod files;
+pub mod publish;
 pub mod report;
 pub mod sink;

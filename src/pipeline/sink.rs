@@ -223,6 +223,7 @@ impl LasSink {
 
     /// Writes encoded records in order, rolling to a new file at the point limit.
     pub fn write(&mut self, mut records: &[u8], stats: &ChunkStats) -> Result<()> {
+        crate::interrupt::check()?;
         let layout = self.settings.config.layout.clone();
         let len = layout.record_len();
         let mut whole = Some(stats.clone());

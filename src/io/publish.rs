@@ -1,0 +1,280 @@
+//! A run's outputs published as one set. Every file of a run is written into a staging folder
+//! beside its destination (`.<stem>.kinescan-<pid>-<n>.tmp/`, named like every temporary of
+//! [`super::atomic`], so a killed run's folder is recognised and removed later); only when the
+//! whole run has succeeded are the files renamed onto their final names, the report last. A
+//! failed or interrupted run drops the set: the staging folders go, the previous outputs stay.
+//!
+//! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
+
+use super::atomic::create_temp_dir;
+use crate::{Error, Result};
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+/// Staging folders of one run, one per destination folder.
+pub struct OutputSet {
+    label: String,
+    staging: Vec<(PathBuf, tempfile::TempDir)>,
+}
+
+impl OutputSet {
+    /// An empty set; `label` (the output stem) names its staging folders.
+    pub fn new(label: &str) -> Self {
+        OutputSet {
+            label: label.to_string(),
+            staging: Vec::new(),
+        }
+    }
+
+    /// Where to write `final_path` during the run: the same name in the staging folder of its
+    /// destination folder (created on first use; the destination folder too).
+    pub fn stage(&mut self, final_path: &Path) -> Result<PathBuf> {
+        let dir = parent_dir(final_path).to_path_buf();
+        let name = final_path
+            .file_name()
+            .ok_or_else(|| Error::bad_file(final_path, "output path has no file name"))?;
+        if let Some((_, t)) = self.staging.iter().find(|(d, _)| *d == dir) {
+            return Ok(t.path().join(name));
+        }
+        std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
+        let t = create_temp_dir(&dir, &self.label)?;
+        let staged = t.path().join(name);
+        self.staging.push((dir, t));
+        Ok(staged)
+    }
+
+    /// The destination of a path inside a staging folder (other paths unchanged).
+    pub fn final_path(&self, path: &Path) -> PathBuf {
+        for (dir, t) in &self.staging {
+            if let Ok(rest) = path.strip_prefix(t.path()) {
+                return dir.join(rest);
+            }
+        }
+        path.to_path_buf()
+    }
+
+    /// `e` with every staged path replaced by its destination, so messages name the user's
+    /// file, never a staging folder.
+    pub fn user_error(&self, e: Error) -> Error {
+        match e {
+            Error::Io { path, source } => Error::Io {
+                path: self.final_path(&path),
+                source: self.without_staged_paths(source),
+            },
+            Error::BadFile { path, problem } => Error::BadFile {
+                path: self.final_path(&path),
+                problem,
+            },
+            Error::BadRecord { path, at, problem } => Error::BadRecord {
+                path: self.final_path(&path),
+                at,
+                problem,
+            },
+            other => other,
+        }
+    }
+
+    /// An OS error whose text names a staged path (some writers add it) reduced to the OS's
+    /// own text.
+    fn without_staged_paths(&self, e: std::io::Error) -> std::io::Error {
+        let text = e.to_string();
+        let staged = self
+            .staging
+            .iter()
+            .any(|(_, t)| text.contains(&*t.path().to_string_lossy()));
+        if !staged {
+            return e;
+        }
+        match e.raw_os_error() {
+            Some(code) => std::io::Error::from_raw_os_error(code),
+            // `tempfile` appends ` at path "<temporary>"` to the OS's text.
+            None => {
+                let own = text.split(" at path \"").next().unwrap_or_default();
+                std::io::Error::new(e.kind(), own.to_string())
+            }
+        }
+    }
+
+    /// Renames every staged file (not folder) onto its destination (`last` after all others, in the order
+    /// given), makes the renames durable and removes the staging folders. Returns the
+    /// destinations, in publication order.
+    pub fn publish(self, last: &[PathBuf]) -> Result<Vec<PathBuf>> {
+        let mut moves = Vec::new();
+        for (dir, t) in &self.staging {
+            let entries = std::fs::read_dir(t.path()).map_err(|e| Error::io(dir, e))?;
+            for entry in entries {
+                let entry = entry.map_err(|e| Error::io(dir, e))?;
+                // Folders (an import staging folder still being removed) are not outputs.
+                if entry.file_type().is_ok_and(|t| t.is_file()) {
+                    moves.push((entry.path(), dir.join(entry.file_name())));
+                }
+            }
+        }
+        let rank = |dest: &PathBuf| last.iter().position(|l| l == dest).map_or(0, |k| k + 1);
+        moves.sort_by(|a, b| rank(&a.1).cmp(&rank(&b.1)).then_with(|| a.1.cmp(&b.1)));
+        for (from, to) in &moves {
+            std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
+        }
+        for (dir, _) in &self.staging {
+            sync_dir(dir).map_err(|e| Error::io(dir, e))?;
+        }
+        Ok(moves.into_iter().map(|(_, to)| to).collect())
+    }
+}
+
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+fn sync_dir(dir: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    match File::open(dir)?.sync_all() {
+        // Some filesystems cannot fsync a folder; the renames have happened.
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
+        other => other,
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = dir;
+        Ok(())
+    }
+}
+
+/// An exclusive lock on an output stem, held while a run writes and publishes it: the file
+/// `.<stem>.kinescan-lock` beside the output (empty, kept; the lock is the OS's, released when
+/// the process ends however it ends).
+pub struct StemLock {
+    _file: File,
+}
+
+impl StemLock {
+    /// Takes the lock for outputs named after `las`, or fails at once naming the lock when
+    /// another run holds it.
+    pub fn acquire(las: &Path) -> Result<StemLock> {
+        let dir = parent_dir(las);
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+        let stem = las.file_stem().unwrap_or_default().to_string_lossy();
+        let path = dir.join(format!(".{stem}.kinescan-lock"));
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&path)
+            .map_err(|e| Error::io(&path, e))?;
+        match file.try_lock() {
+            Ok(()) => Ok(StemLock { _file: file }),
+            Err(std::fs::TryLockError::WouldBlock) => Err(Error::bad_file(
+                las,
+                format!(
+                    "another kinescan run is writing these outputs (it holds {}): wait for it \
+                     to end, or write to another path",
+                    path.display()
+                ),
+            )),
+            Err(std::fs::TryLockError::Error(e)) => Err(Error::io(&path, e)),
+        }
+    }
+}
+
+/// The outputs a previous run listed in its report at `report` (`outputs[].path` and
+/// `sync[].plots[]`) that are named after `las`'s stem, taken in `las`'s folder (the report may
+/// hold paths relative to another working folder); none without a readable report.
+pub fn previous_outputs(report: &Path, las: &Path) -> Vec<PathBuf> {
+    let Ok(text) = std::fs::read(report) else {
+        return Vec::new();
+    };
+    let Ok(json) = serde_json::from_slice::<serde_json::Value>(&text) else {
+        return Vec::new();
+    };
+    let stem = las.file_stem().unwrap_or_default().to_string_lossy();
+    let outputs = json["outputs"].as_array().into_iter().flatten();
+    let plots = json["sync"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .flat_map(|s| s["plots"].as_array().into_iter().flatten());
+    outputs
+        .map(|o| &o["path"])
+        .chain(plots)
+        .filter_map(|p| Path::new(p.as_str()?).file_name())
+        .filter(|name| name.to_string_lossy().starts_with(&*stem))
+        .map(|name| las.with_file_name(name))
+        .collect()
+}
+
+/// Removes the files of `previous` that this run did not produce (`produced`), so a folder
+/// never mixes two runs' files; returns those removed.
+pub fn remove_unproduced(previous: &[PathBuf], produced: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut removed = Vec::new();
+    for p in previous {
+        if produced.contains(p) {
+            continue;
+        }
+        match std::fs::remove_file(p) {
+            Ok(()) => removed.push(p.clone()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(Error::io(p, e)),
+        }
+    }
+    Ok(removed)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn nothing_appears_before_publish_and_a_dropped_set_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("a.las"), b"old").unwrap();
+        let mut set = OutputSet::new("a");
+        let staged = set.stage(&dir.path().join("a.las")).unwrap();
+        std::fs::write(&staged, b"new").unwrap();
+        assert_eq!(set.final_path(&staged), dir.path().join("a.las"));
+        drop(set);
+        assert_eq!(names(dir.path()), ["a.las"]);
+        assert_eq!(std::fs::read(dir.path().join("a.las")).unwrap(), b"old");
+    }
+
+    #[test]
+    fn publish_moves_every_staged_file_and_the_last_ones_last() {
+        let dir = tempfile::tempdir().unwrap();
+        let mut set = OutputSet::new("a");
+        let report = dir.path().join("a.report.json");
+        for name in ["a_0001.las", "a_0002.las", "a.report.json"] {
+            std::fs::write(set.stage(&dir.path().join(name)).unwrap(), name).unwrap();
+        }
+        let order = set.publish(std::slice::from_ref(&report)).unwrap();
+        assert_eq!(order.last(), Some(&report));
+        assert_eq!(
+            names(dir.path()),
+            ["a.report.json", "a_0001.las", "a_0002.las"]
+        );
+    }
+
+    #[test]
+    fn a_second_lock_on_one_stem_fails_naming_the_lock() {
+        let dir = tempfile::tempdir().unwrap();
+        let las = dir.path().join("day.las");
+        let held = StemLock::acquire(&las).unwrap();
+        let e = StemLock::acquire(&las).err().unwrap().to_string();
+        assert!(
+            e.contains("another kinescan run") && e.contains(".day.kinescan-lock"),
+            "{e}"
+        );
+        drop(held);
+        StemLock::acquire(&las).unwrap();
+    }
+}

@@ -1,0 +1,59 @@
+//! A run's outputs published as one set (`io::publish`): the stages write every file (LAS
+//! parts, report, sync plots) into staging folders beside the destinations; only a run that
+//! succeeded renames them into place, the report last, and removes the files of the previous
+//! run with the same stem that this run did not produce. A lock per output stem keeps two runs
+//! apart; the stale temporaries of dead runs are removed from the folders written.
+
+use super::config::LoadedPipeline;
+use super::report::RunReport;
+use crate::io::atomic::remove_stale_temps;
+use crate::io::publish::{previous_outputs, remove_unproduced, OutputSet, StemLock};
+use crate::Result;
+use std::path::Path;
+
+/// Runs `stages` on the pipeline with its outputs redirected into staging folders and
+/// publishes them when it succeeds. Errors name the user's paths, never a staging folder.
+pub fn publish_run(
+    p: &LoadedPipeline,
+    stages: impl FnOnce(&LoadedPipeline) -> Result<RunReport>,
+) -> Result<RunReport> {
+    let c = &p.config;
+    super::files::check_collisions_of(p)?;
+    let las = &c.output.las;
+    let report_path = c.output.report_path();
+    let _lock = StemLock::acquire(las)?;
+    for dir in [parent(las), parent(&report_path)] {
+        remove_stale_temps(dir)?;
+    }
+    let previous = previous_outputs(&report_path, las);
+    let mut set = OutputSet::new(&c.output.stem());
+    let mut staged = p.clone();
+    staged.config.output.las = set.stage(las)?;
+    let staged_report = set.stage(&report_path)?;
+    staged.config.output.report = Some(staged_report.clone());
+    let result = stages(&staged).and_then(|mut report| {
+        report.parameters = c.clone();
+        for o in &mut report.outputs {
+            o.path = set.final_path(&o.path);
+        }
+        for s in &mut report.sync {
+            for plot in &mut s.plots {
+                *plot = set.final_path(plot);
+            }
+        }
+        report.write(&staged_report)?;
+        crate::interrupt::check()?;
+        Ok(report)
+    });
+    let report = result.map_err(|e| set.user_error(e))?;
+    let produced = set.publish(std::slice::from_ref(&report_path))?;
+    remove_unproduced(&previous, &produced)?;
+    Ok(report)
+}
+
+fn parent(path: &Path) -> &Path {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
