@@ -425,10 +425,7 @@ fn run_in_pool(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> Result<
         .map(Path::to_path_buf)
         .unwrap_or_default();
     std::fs::create_dir_all(&out_dir).map_err(|e| Error::io(&out_dir, e))?;
-    let staging = tempfile::Builder::new()
-        .prefix(".kinescan-import-")
-        .tempdir_in(&out_dir)
-        .map_err(|e| Error::io(&out_dir, e))?;
+    let staging = crate::io::atomic::create_temp_dir(&out_dir, "import")?;
     let (profile_files, record_lines) =
         open_profiles_with_lines(&c.inputs.profiles, staging.path())?;
     stages.push(StageTiming {
