@@ -23,6 +23,7 @@ mod io_atomic;
 mod io_bad_input;
 mod io_info;
 mod io_profiles_csv;
+mod las_pinned;
 mod las_roundtrip;
 mod laz_output;
 mod pipeline_roundtrip;

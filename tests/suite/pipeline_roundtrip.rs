@@ -35,7 +35,7 @@ fn sensor() -> Sensor {
     )
 }
 
-fn clock() -> ScannerClock {
+pub(crate) fn clock() -> ScannerClock {
     let mirror = Mirror {
         beta_start_rad: BETA_START_DEG.to_radians(),
         direction: MirrorDirection::Decreasing,
@@ -77,14 +77,14 @@ fn invert(cur: &mut PoseCursor, n: u32, x_e: &Vector3<f64>) -> Option<RawReturn>
     None
 }
 
-struct Fixture {
-    dir: tempfile::TempDir,
+pub(crate) struct Fixture {
+    pub(crate) dir: tempfile::TempDir,
     truth_e: Vec<Vector3<f64>>,
 }
 
 /// Known points around the trajectory, inverted into a binary profile file with an alpha
 /// column, ordered by profile.
-fn fixture(count: usize) -> Fixture {
+pub(crate) fn fixture(count: usize) -> Fixture {
     let dir = tempfile::tempdir().unwrap();
     let (sbet, smrmsg) = write_trajectory(dir.path());
     let traj = Trajectory::open(&sbet, Some(&smrmsg), TrajectoryOptions::default()).unwrap();

@@ -24,7 +24,7 @@ const T0_S: f64 = T_START_S + 0.013;
 const PERIOD_S: f64 = 0.01;
 
 /// Full sigma set: Table 1 "expected" of paper 003 plus timing terms.
-const FULL: &str = r#"
+pub(crate) const FULL: &str = r#"
 [uncertainty]
 sigma_lever_arm_b_m = [0.02, 0.02, 0.02]
 sigma_boresight_deg = [0.02, 0.02, 0.02]
@@ -66,7 +66,7 @@ fn clock() -> ScannerClock {
 /// Profiles over the whole trajectory, `per_profile` returns each at random beta; ranges of a
 /// parking-lot-like scene (flat ground 2.5 m below the scanner, nothing beyond 80 m, 5 cm of
 /// noise), so consecutive returns of a profile are close as in real data.
-fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
+pub(crate) fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
     let mut w = ProfileWriter::create(path, ProfileColumns::default()).unwrap();
     let mut rng = Lcg(7);
     let profiles = ((DURATION_S - 0.1) / PERIOD_S) as u32;
@@ -91,7 +91,7 @@ fn write_profiles(path: &Path, per_profile: usize) -> Vec<RawReturn> {
     all
 }
 
-fn write_pipeline(dir: &Path, smrmsg: &str, uncertainty: &str) -> std::path::PathBuf {
+pub(crate) fn write_pipeline(dir: &Path, smrmsg: &str, uncertainty: &str) -> std::path::PathBuf {
     let text = format!(
         r#"[inputs]
 sbet = "traj.sbet"
