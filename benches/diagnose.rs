@@ -34,9 +34,9 @@ fn main() {
         .unwrap_or(3);
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let sc = Scenario::parse(kinescan::demo::SCENARIO, "city block").unwrap();
+    let sc = Scenario::parse(kinescan::app::demo::SCENARIO, "city block").unwrap();
     simulate_scenario(&sc, &d.join("survey"), &SimOptions::default()).unwrap();
-    std::fs::write(d.join("pipeline.toml"), kinescan::demo::PIPELINE).unwrap();
+    std::fs::write(d.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
     let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
     let req = Request {
         patches: d.join("survey/patches.csv"),

@@ -9,10 +9,10 @@
 //! The case: paper 003's "expected" sigmas plus INS sigmas and timing terms, a van turning at
 //! 20 deg/s and rolling at 10 deg/s, a return at 30 m.
 
-use kinescan::uncertainty::model::{Input, PointGeometry, N_INPUTS};
-use kinescan::uncertainty::sensitivity::{
+use kinescan::app::sensitivity::{
     enu_error_model, flat_ground_point, load_sensitivity, study_sigmas,
 };
+use kinescan::uncertainty::model::{Input, PointGeometry, N_INPUTS};
 use kinescan::uncertainty::sobol::{Row, SaltelliDesign};
 use std::io::Write;
 use std::path::Path;

@@ -113,7 +113,7 @@ pub fn georeference(pose: &Pose, sensor: &Sensor, x_s_m: &Vector3<f64>) -> Vecto
 
 /// The terms of the SPEC 4 equation for one return, computed once and shared by the point
 /// ([`ReturnTerms::point_e`], identical to [`georeference`]) and the uncertainty Jacobian
-/// (`crate::uncertainty::PointGeometry::jacobian_in_axes`), which needs the same rotations and
+/// (`PointGeometry::jacobian_in_axes` of the uncertainty model), which needs the same rotations and
 /// beam trigonometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ReturnTerms {
@@ -230,11 +230,7 @@ mod tests {
             q_b_to_n: q,
             omega_b_radps: Vector3::zeros(),
         };
-        let pose = Pose {
-            nav,
-            q_b_to_n: q,
-            omega_b_radps: Vector3::zeros(),
-        };
+        let pose = Pose::of(&nav);
         let sensor = Sensor::new(
             Vector3::new(0.4, -0.3, -1.6),
             Vector3::new(0.03, -0.04, 1.6),

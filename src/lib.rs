@@ -8,7 +8,6 @@
 
 pub mod app;
 pub mod calib;
-pub mod demo;
 pub mod error;
 pub mod geo;
 pub mod georef;

@@ -3,10 +3,41 @@
 //!
 //! Software sync: `t = t0 + T * (n + f(beta))`; hardware (PPS) profile tags:
 //! `t = t_n + T * f(beta)`; with `f(beta) = wrap(dir * (beta - beta_start)) / (2 pi)` and
-//! `wrap` into [0, 2 pi). Times are GPS seconds, angles radians.
+//! `wrap` into [0, 2 pi). Times are GPS seconds, angles radians. [`ReturnClock`] is the one
+//! place a return's time is decided from the configured [`TimeModel`].
 
 use crate::geo::rotations::wrap_two_pi;
+use crate::io::profiles::RawReturn;
 use std::f64::consts::TAU;
+
+/// How return times are obtained (SPEC 2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimeModel {
+    /// `t = t0 + T (n + f(beta))` from the profile counter (no hardware time tags).
+    Software,
+    /// The `time_s` column holds each profile's PPS-derived start time `t_n`:
+    /// `t = t_n + T f(beta)`.
+    HardwareProfile,
+    /// The `time_s` column holds each return's own GPS time.
+    HardwareReturn,
+}
+
+impl TimeModel {
+    /// The model as spelled in a pipeline file (`hardware_return`...).
+    pub fn name(self) -> &'static str {
+        match self {
+            TimeModel::Software => "software",
+            TimeModel::HardwareProfile => "hardware_profile",
+            TimeModel::HardwareReturn => "hardware_return",
+        }
+    }
+
+    /// Whether the model reads the profile file's `time_s` column.
+    pub fn needs_time_tags(self) -> bool {
+        self != TimeModel::Software
+    }
+}
 
 /// Sense of mirror rotation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -90,6 +121,42 @@ impl ScannerClock {
     }
 }
 
+/// A resolved scanner clock and the model that says how it is used: the time of any return.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ReturnClock {
+    /// Which time model.
+    pub model: TimeModel,
+    /// Clock parameters (t0 is unused by the hardware models, T by `HardwareReturn`).
+    pub clock: ScannerClock,
+}
+
+impl ReturnClock {
+    /// GPS time (s) of a return and its partials with respect to the clock parameters
+    /// (t0, T): `(1, n + f)` (software), `(0, f)` (profile tags), `(0, 0)` (return tags).
+    #[inline]
+    pub fn time_and_partials(&self, r: &RawReturn) -> (f64, [f64; 2]) {
+        match self.model {
+            TimeModel::Software => {
+                let (t, (a, b)) = self.clock.time_and_partials(r.profile, r.beta_rad);
+                (t, [a, b])
+            }
+            TimeModel::HardwareProfile => {
+                let (t, f) = self
+                    .clock
+                    .time_from_profile_tag_and_partial(r.time_s, r.beta_rad);
+                (t, [0.0, f])
+            }
+            TimeModel::HardwareReturn => (r.time_s, [0.0, 0.0]),
+        }
+    }
+
+    /// GPS time (s) of a return.
+    #[inline]
+    pub fn time_of(&self, r: &RawReturn) -> f64 {
+        self.time_and_partials(r).0
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -124,5 +191,29 @@ mod tests {
         assert!((c.time_of(10, std::f64::consts::PI) - 1000.105).abs() < 1e-12);
         assert_eq!(c.partials(10, std::f64::consts::PI), (1.0, 10.5));
         assert!((c.time_from_profile_tag(5.0, std::f64::consts::PI) - 5.005).abs() < 1e-15);
+    }
+
+    #[test]
+    fn return_clock_dispatches_on_the_model() {
+        let clock = ScannerClock {
+            t0_s: 1000.0,
+            period_s: 0.01,
+            mirror: Mirror {
+                beta_start_rad: 0.0,
+                direction: MirrorDirection::Increasing,
+            },
+        };
+        let r = RawReturn {
+            profile: 10,
+            beta_rad: std::f64::consts::PI,
+            time_s: 7.0,
+            ..RawReturn::default()
+        };
+        let at = |model| ReturnClock { model, clock }.time_and_partials(&r);
+        let (t, d) = at(TimeModel::Software);
+        assert!((t - 1000.105).abs() < 1e-12 && d == [1.0, 10.5]);
+        let (t, d) = at(TimeModel::HardwareProfile);
+        assert!((t - 7.005).abs() < 1e-15 && d == [0.0, 0.5]);
+        assert_eq!(at(TimeModel::HardwareReturn), (7.0, [0.0, 0.0]));
     }
 }

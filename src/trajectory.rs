@@ -169,6 +169,7 @@ pub struct TrajectoryOptions {
 }
 
 impl Default for TrajectoryOptions {
+    /// `max_gap_s` 0.1 s (the `trajectory.max_gap_s` default of pipeline files).
     fn default() -> Self {
         TrajectoryOptions {
             max_gap_s: 0.1,
@@ -348,15 +349,68 @@ impl SigmaCursor<'_> {
     }
 }
 
-/// Pose for georeferencing one return: position at `t`, attitude at `t + tau` (SPEC 2).
+/// The navigation state without attitude, at `t + position latency`: position, geodetic
+/// coordinates and velocity. (A [`Pose`]'s attitude is evaluated at `t + tau`, so this part
+/// carries none, and the attitude at the wrong time cannot be picked up by mistake.)
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavPosition {
+    /// GPS time (s) at which it is evaluated.
+    pub t_s: f64,
+    /// IMU origin in ECEF `e` (m).
+    pub r_e_m: Vector3<f64>,
+    /// Geodetic latitude (rad).
+    pub lat_rad: f64,
+    /// Longitude (rad), (-pi, pi].
+    pub lon_rad: f64,
+    /// Ellipsoidal height (m).
+    pub h_m: f64,
+    /// Velocity in NED (m/s).
+    pub v_n_mps: Vector3<f64>,
+}
+
+impl NavSample {
+    /// The state without its attitude.
+    #[inline]
+    pub fn position(&self) -> NavPosition {
+        NavPosition {
+            t_s: self.t_s,
+            r_e_m: self.r_e_m,
+            lat_rad: self.lat_rad,
+            lon_rad: self.lon_rad,
+            h_m: self.h_m,
+            v_n_mps: self.v_n_mps,
+        }
+    }
+}
+
+/// Pose for georeferencing one return: position at `t` (+ position latency), attitude at
+/// `t + tau` (SPEC 2). It carries one attitude, the one the equation uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
-    /// Navigation state at `t + position latency` (position, lat/lon, velocity).
-    pub nav: NavSample,
+    /// Position, geodetic coordinates and velocity at `t + position latency`.
+    pub nav: NavPosition,
     /// Attitude `R_b^n` at `t + tau`.
     pub q_b_to_n: UnitQuaternion<f64>,
     /// Body angular rate at `t + tau` (rad/s).
     pub omega_b_radps: Vector3<f64>,
+}
+
+impl Pose {
+    /// The pose of one navigation state (no latency).
+    #[inline]
+    pub fn of(nav: &NavSample) -> Self {
+        Pose::split(nav, nav)
+    }
+
+    /// Position from `position`, attitude and body rate from `attitude`.
+    #[inline]
+    pub fn split(position: &NavSample, attitude: &NavSample) -> Self {
+        Pose {
+            nav: position.position(),
+            q_b_to_n: attitude.q_b_to_n,
+            omega_b_radps: attitude.omega_b_radps,
+        }
+    }
 }
 
 /// Two cursors (position and attitude) applying the latencies.
@@ -383,18 +437,10 @@ impl<'a> PoseCursor<'a> {
     pub fn at(&mut self, t: f64) -> Result<Pose, NavGap> {
         let nav = self.pos.at(t + self.position_latency_s)?;
         if self.attitude_latency_s == self.position_latency_s {
-            return Ok(Pose {
-                nav,
-                q_b_to_n: nav.q_b_to_n,
-                omega_b_radps: nav.omega_b_radps,
-            });
+            return Ok(Pose::of(&nav));
         }
         let att = self.att.at(t + self.attitude_latency_s)?;
-        Ok(Pose {
-            nav,
-            q_b_to_n: att.q_b_to_n,
-            omega_b_radps: att.omega_b_radps,
-        })
+        Ok(Pose::split(&nav, &att))
     }
 }
 

@@ -1,3 +1,14 @@
-//! Application commands built on the pipeline: each reads pipeline files and writes reports.
+//! The application layer: commands that combine stages and libraries. Nothing below imports
+//! from here; the command-line interface (`src/cli`) calls these.
+//!
+//! - [`demo`]: simulate a city block, run the pipeline on it, compare with the truth.
+//! - [`diagnose`]: the sim-to-real gap diagnosis (`kinescan diagnose`, docs/diagnosis.md).
+//! - [`sensitivity`]: the `kinescan sensitivity` study (the uncertainty model on flat-ground
+//!   points or on a simulated survey's returns).
+//!
+//! A new command that chains stages (e.g. a batch of days) goes here, as its own module,
+//! calling the pipeline's stages ([`crate::pipeline`]) and libraries.
 
+pub mod demo;
 pub mod diagnose;
+pub mod sensitivity;

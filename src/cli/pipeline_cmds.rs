@@ -2,8 +2,7 @@
 
 use anyhow::{Context, Result};
 use clap::Args;
-use kinescan::pipeline::config;
-use kinescan::pipeline::executor::{self, RunOptions};
+use kinescan::pipeline::{self, config, RunOptions};
 use std::path::PathBuf;
 
 /// Georeference a survey: trajectory + raw profiles in, LAS 1.4 and a JSON run report out.
@@ -68,8 +67,7 @@ pub fn run(a: &RunArgs, quiet: bool) -> Result<()> {
         progress: !quiet,
         ..RunOptions::default()
     };
-    let report = executor::run(&loaded, &opts)?;
-    let report_path = loaded.config.output.report_path();
+    let report = pipeline::run(&loaded, &opts)?;
     if !quiet {
         let t = &report.totals;
         println!(
@@ -86,15 +84,14 @@ pub fn run(a: &RunArgs, quiet: bool) -> Result<()> {
         for o in &report.outputs {
             println!("wrote {} ({} points)", o.path.display(), o.points);
         }
-        println!("report {}", report_path.display());
+        println!("report {}", loaded.config.output.report_path().display());
     }
     Ok(())
 }
 
 pub fn validate(a: &ValidateArgs) -> Result<()> {
     let loaded = config::load(&a.pipeline, &a.set)?;
-    kinescan::pipeline::executor::check_inputs(&loaded)
-        .with_context(|| format!("{}: inputs", a.pipeline.display()))?;
+    pipeline::check_inputs(&loaded).with_context(|| format!("{}: inputs", a.pipeline.display()))?;
     println!("{}: valid", a.pipeline.display());
     Ok(())
 }

@@ -20,7 +20,7 @@ pub struct SensitivityArgs {
 
 pub fn sensitivity(a: &SensitivityArgs, quiet: bool) -> Result<()> {
     crate::cli::remove_stale_temps(&a.out)?;
-    let report = kinescan::uncertainty::sensitivity::run_sensitivity(&a.config, &a.out)?;
+    let report = kinescan::app::sensitivity::run_sensitivity(&a.config, &a.out)?;
     if !quiet {
         println!("{}", serde_json::to_string_pretty(&report)?);
     }

@@ -2,7 +2,7 @@
 
 use anyhow::Result;
 use clap::Args;
-use kinescan::pipeline::executor::RunOptions;
+use kinescan::pipeline::RunOptions;
 use kinescan::sim::{self, SimOptions};
 use std::path::PathBuf;
 
@@ -92,7 +92,7 @@ pub fn demo(a: &DemoArgs, quiet: bool) -> Result<()> {
         progress: progress(quiet, "simulating the city block"),
         ..SimOptions::default()
     };
-    let d = kinescan::demo::run_demo(&a.out, &sim, &run)?;
+    let d = kinescan::app::demo::run_demo(&a.out, &sim, &run)?;
     if !quiet {
         println!("{d}");
     }

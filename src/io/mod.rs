@@ -1,7 +1,9 @@
 //! File formats that cross the project's boundary (SPEC 6 and 7).
 
 pub mod atomic;
+pub mod counters;
 mod csv_text;
+pub mod digest;
 pub mod info;
 pub mod las;
 pub mod laz;

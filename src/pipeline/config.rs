@@ -10,6 +10,7 @@
 use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
 use crate::timing::MirrorDirection;
+pub use crate::timing::TimeModel;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
@@ -288,30 +289,6 @@ impl SensorConfig {
     }
 }
 
-/// How return times are obtained (SPEC 2).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TimeModel {
-    /// `t = t0 + T (n + f(beta))` from the profile counter (no hardware time tags).
-    Software,
-    /// The `time_s` column holds each profile's PPS-derived start time `t_n`:
-    /// `t = t_n + T f(beta)`.
-    HardwareProfile,
-    /// The `time_s` column holds each return's own GPS time.
-    HardwareReturn,
-}
-
-impl TimeModel {
-    /// The model as spelled in a pipeline file (`hardware_return`...).
-    pub fn name(self) -> &'static str {
-        match self {
-            TimeModel::Software => "software",
-            TimeModel::HardwareProfile => "hardware_profile",
-            TimeModel::HardwareReturn => "hardware_return",
-        }
-    }
-}
-
 /// `[time]`: the scanner clock.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -554,7 +531,7 @@ fn yes() -> bool {
     true
 }
 fn default_max_gap_s() -> f64 {
-    0.1
+    crate::trajectory::TrajectoryOptions::default().max_gap_s
 }
 fn default_min_range_m() -> f64 {
     0.5

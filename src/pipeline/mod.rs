@@ -1,14 +1,186 @@
-//! The staged batch processor.
+//! The staged batch processor: `kinescan run`.
 //!
-//! Lifecycle of a run: **load** the pipeline file (all options declared in [`config`], unknown
-//! keys refused, `--set` overrides applied) -> **prepare** (open and validate the trajectory,
-//! map or import the profile files) -> **georeference** (chunks of returns in parallel: time
-//! model, trajectory interpolation with latency, SPEC 4 equation, map projection) -> **write**
-//! (LAS 1.4 streamed in input order, atomically) -> **report** (JSON run report).
+//! A run is six stages, each a module with a typed output, in data-flow order:
+//!
+//! 1. **load** ([`config::load`]): the pipeline file parsed, `--set` overrides applied, every
+//!    key and value checked, paths resolved -> [`config::LoadedPipeline`].
+//! 2. **prepare** ([`prepare::run`]): the trajectory opened and validated, the output frame
+//!    fixed, profile files memory-mapped (CSV files imported) -> [`prepare::Prepared`].
+//! 3. **sync** ([`sync::run`]): the clock of every input resolved (t0, T, latencies and their
+//!    covariances; estimated from sync targets with `[sync]`) before anything is built from
+//!    it -> [`sync::Synced`].
+//! 4. **georeference** (+ uncertainty) ([`georeference::ReturnGeoreferencer`], one per
+//!    input): per return the time model, the pose, the SPEC 4 equation, the map projection
+//!    and the per-point sigmas -> [`georeference::GeoreferencedReturn`], filled into a LAS
+//!    point by the [`schema::OutputSchema`]'s [`schema::PointFill`].
+//! 5. **write** ([`write::LasSink`]): encoded records written in input order, split into
+//!    files as configured, each atomically -> [`report::OutputReport`]s.
+//! 6. **report** ([`report`]): the run report assembled and written to
+//!    [`config::OutputConfig::report_path`] -> [`report::RunReport`].
+//!
+//! Stages 4 and 5 run together in the [`executor`]: chunks of returns in parallel, written in
+//! input order by one writer thread (the output bytes do not depend on the thread count).
+//! docs/pipeline.md documents the stages and every option.
 
 pub mod config;
 pub mod executor;
 pub mod files;
+pub mod georeference;
+pub mod prepare;
 pub mod publish;
 pub mod report;
-pub mod sink;
+pub mod schema;
+pub mod sync;
+pub mod write;
+
+pub use config::{load, LoadedPipeline};
+pub use executor::RunOptions;
+
+use georeference::ReturnGeoreferencer;
+use report::{OutputReport, ReturnCounts, RunReport, StageTiming};
+use schema::OutputSchema;
+use std::time::Instant;
+use write::{LasSink, SinkSettings};
+
+/// Runs a loaded pipeline: every stage after load; the LAS output(s) and the run report (at
+/// [`config::OutputConfig::report_path`]) are published as one set ([`publish`]) when every
+/// stage succeeded; gives the report.
+pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> crate::Result<RunReport> {
+    let threads = opts
+        .threads
+        .unwrap_or_else(rayon::current_num_threads)
+        .max(1);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| crate::Error::Invalid(format!("cannot start {threads} threads: {e}")))?;
+    publish::publish_run(p, |staged| {
+        pool.install(|| run_stages(staged, opts, threads))
+    })
+}
+
+/// Opens and checks every input of a pipeline without georeferencing (`kinescan validate`):
+/// no output overwrites an input, the trajectory, the map frame, the sync points and targets, each profile file (CSV files
+/// parsed completely) and the time model's needs.
+pub fn check_inputs(p: &LoadedPipeline) -> crate::Result<()> {
+    files::check_collisions_of(p)?;
+    prepare::check_inputs(p)?;
+    sync::check_inputs(&p.config)
+}
+
+/// Stages 2 to 6 on the current thread pool.
+fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::Result<RunReport> {
+    let c = &p.config;
+    let mut stages = Vec::new();
+    let mut timed = |stage: &str, started: Instant| {
+        stages.push(StageTiming {
+            stage: stage.into(),
+            seconds: started.elapsed().as_secs_f64(),
+        })
+    };
+    let started = Instant::now();
+    let prepared = prepare::run(p)?;
+    timed("prepare", started);
+
+    let started = Instant::now();
+    let synced = sync::run(c, &prepared)?;
+    if c.sync.is_some() {
+        timed("sync", started);
+    }
+
+    let started = Instant::now();
+    let schema = OutputSchema::new(c);
+    let settings = SinkSettings::new(c, &schema, &prepared.frame, &prepared.traj)?;
+    let mut sink = LasSink::new(settings);
+    let total = prepared.inputs.iter().map(|i| i.file.len() as u64).sum();
+    let bar = progress_bar(opts.progress, total);
+    let mut inputs = Vec::new();
+    for (input, clock) in prepared.inputs.iter().zip(&synced.clocks) {
+        let geo = ReturnGeoreferencer::new(
+            &prepared.traj,
+            &c.sensor,
+            input.file.columns(),
+            *clock,
+            prepared.frame,
+            c.uncertainty.as_ref(),
+        );
+        let fill = schema.fill(input.point_source_id);
+        sink.start_input(&input.original)?;
+        let strictness = c.output.strictness;
+        let report = executor::process_input(&geo, &fill, input, opts, strictness, &mut sink, &bar)
+            .map_err(|e| prepare::on_user_line(e, input))?;
+        inputs.push(report);
+    }
+    bar.finish_and_clear();
+    check_not_empty(p, &inputs)?;
+    let summaries = sink.finish()?;
+    let georef_s = started.elapsed().as_secs_f64();
+    timed("georeference_and_write", started);
+
+    let mut totals = ReturnCounts::default();
+    inputs.iter().for_each(|i| totals.merge(&i.counts));
+    let outputs = summaries
+        .into_iter()
+        .map(|s| OutputReport {
+            path: s.path,
+            points: s.point_count,
+            min_m: s.min_m,
+            max_m: s.max_m,
+            bytes: s.file_bytes,
+        })
+        .collect();
+    Ok(RunReport {
+        kinescan_version: env!("CARGO_PKG_VERSION").into(),
+        files: prepared.files,
+        overrides: p.overrides.clone(),
+        parameters: c.clone(),
+        frame: prepared.frame.to_string(),
+        epsg: prepared.frame.epsg(),
+        trajectory_span_s: prepared.traj.span_s(),
+        inputs,
+        totals: totals.clone(),
+        outputs,
+        threads,
+        stages,
+        returns_per_second: totals.read as f64 / georef_s.max(1e-9),
+        peak_rss_bytes: report::peak_rss_bytes(),
+        sync: synced.reports,
+    })
+}
+
+/// Refuses a run that wrote no point unless `output.allow_empty` (before anything is
+/// published, so the previous output stays).
+fn check_not_empty(p: &LoadedPipeline, inputs: &[report::InputReport]) -> crate::Result<()> {
+    let mut totals = ReturnCounts::default();
+    inputs.iter().for_each(|i| totals.merge(&i.counts));
+    if totals.written > 0 || p.config.output.allow_empty {
+        return Ok(());
+    }
+    let reasons: Vec<String> = totals
+        .rejected
+        .iter()
+        .map(|(reason, n)| format!("{n} {}", reason.describe()))
+        .collect();
+    let why = if reasons.is_empty() {
+        String::new()
+    } else {
+        format!(" (rejected: {})", reasons.join("; "))
+    };
+    Err(crate::Error::config(
+        p.path.display().to_string(),
+        "output.allow_empty",
+        format!(
+            "no point written from {} returns read{why}: the previous output is kept; fix the \
+             inputs or set output.allow_empty = true to write an empty output",
+            totals.read
+        ),
+    ))
+}
+
+fn progress_bar(enabled: bool, total: u64) -> indicatif::ProgressBar {
+    if enabled {
+        crate::progress::bar(total, "georeferencing returns")
+    } else {
+        indicatif::ProgressBar::hidden()
+    }
+}

@@ -1,13 +1,14 @@
-//! The JSON run report: what was read (sizes, hashes), every parameter used, what happened to
-//! every return (read = written + rejected by reason), time spans and stage timings.
+//! Stage 6, **report**: the JSON run report, what was read (sizes, hashes), every parameter
+//! used, what happened to every return (read = written + rejected by reason), time spans and
+//! stage timings. Written to `OutputConfig::report_path`.
 
+use super::config::PipelineConfig;
+use super::sync::SyncStageReport;
 use crate::io::atomic::write_json;
-use crate::pipeline::config::PipelineConfig;
-use crate::{Error, Result};
+pub use crate::io::digest::{hex, FileRecord};
+use crate::Result;
 use serde::Serialize;
-use sha2::{Digest, Sha256};
 use std::collections::BTreeMap;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 
 /// Why a return was not written.
@@ -38,6 +39,12 @@ impl RejectReason {
         RejectReason::TrajectoryGap,
         RejectReason::OutsideAccuracy,
     ];
+
+    /// Position in [`Self::ALL`].
+    #[inline]
+    pub fn index(self) -> usize {
+        self as usize
+    }
 
     /// A sentence for error messages.
     pub fn describe(self) -> &'static str {
@@ -71,6 +78,23 @@ impl ReturnCounts {
         self.rejected.values().sum()
     }
 
+    /// Adds a chunk of `read` returns of which `written` were written and `rejected[k]` were
+    /// rejected for reason `RejectReason::ALL[k]`.
+    pub fn add_chunk(
+        &mut self,
+        read: u64,
+        written: u64,
+        rejected: &[u64; RejectReason::ALL.len()],
+    ) {
+        for (reason, n) in RejectReason::ALL.iter().zip(rejected) {
+            if *n > 0 {
+                *self.rejected.entry(*reason).or_default() += n;
+            }
+        }
+        self.read += read;
+        self.written += written;
+    }
+
     /// Adds `other`.
     pub fn merge(&mut self, other: &ReturnCounts) {
         self.read += other.read;
@@ -79,48 +103,6 @@ impl ReturnCounts {
             *self.rejected.entry(*k).or_default() += v;
         }
     }
-}
-
-/// A file read or written, identified by size and SHA-256.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct FileRecord {
-    /// Role: "pipeline", "sbet", "smrmsg", "profiles", "las".
-    pub role: String,
-    /// Path as used.
-    pub path: PathBuf,
-    /// Size (bytes).
-    pub bytes: u64,
-    /// SHA-256 of the content, hex.
-    pub sha256: String,
-}
-
-impl FileRecord {
-    /// Hashes `path` by streaming it.
-    pub fn of(role: &str, path: &Path) -> Result<Self> {
-        let mut f = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-        let mut h = Sha256::new();
-        let mut buf = vec![0u8; 1 << 20];
-        let mut bytes = 0u64;
-        loop {
-            let n = f.read(&mut buf).map_err(|e| Error::io(path, e))?;
-            if n == 0 {
-                break;
-            }
-            h.update(&buf[..n]);
-            bytes += n as u64;
-        }
-        Ok(FileRecord {
-            role: role.into(),
-            path: path.into(),
-            bytes,
-            sha256: hex(&h.finalize()),
-        })
-    }
-}
-
-/// Lower-case hex of `bytes`.
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
 /// One profile file's processing summary.
@@ -199,7 +181,7 @@ pub struct RunReport {
     pub peak_rss_bytes: Option<u64>,
     /// Object-space synchronisation, per profile file (when `[sync]` is present).
     #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub sync: Vec<crate::sync::stage::SyncStageReport>,
+    pub sync: Vec<SyncStageReport>,
 }
 
 /// Peak resident set size of this process (bytes), from `/proc/self/status` on Linux.

@@ -206,12 +206,7 @@ impl TruthWindow<'_> {
             i -= 1;
         }
         *hint = i;
-        let nav = interpolate(&s[i], &s[i + 1], t);
-        Pose {
-            nav,
-            q_b_to_n: nav.q_b_to_n,
-            omega_b_radps: nav.omega_b_radps,
-        }
+        Pose::of(&interpolate(&s[i], &s[i + 1], t))
     }
 }
 

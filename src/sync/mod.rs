@@ -17,7 +17,6 @@ pub mod hardware;
 pub mod paper;
 pub mod plots;
 pub mod refined;
-pub mod stage;
 
 use crate::geo::ellipsoid::{geodetic_to_ecef, r_enu_to_e, Geodetic};
 use crate::georef::Sensor;

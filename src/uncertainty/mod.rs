@@ -6,15 +6,14 @@
 //!   variance shares.
 //! - [`sobol`]: Saltelli sampling, Saltelli-2010 first-order and Jansen total-effect
 //!   estimators with bootstrap intervals, on the exact model.
-//! - [`sensitivity`]: the `kinescan sensitivity` study (TOML in, CSV/JSON tables out).
+//!
+//! The `kinescan sensitivity` study built on them is an application command (`app::sensitivity`).
 //!
 //! docs/uncertainty.md documents the model, the inputs and the output fields.
 
 pub mod model;
 pub mod propagate;
-pub mod sensitivity;
 pub mod sobol;
 
 pub use model::{Group, Input, PointGeometry, N_GROUPS, N_INPUTS};
 pub use propagate::{propagate, PointCovariance, UncertaintyInputs};
-pub use sensitivity::{run_sensitivity, SensitivityReport};

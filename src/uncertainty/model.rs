@@ -24,7 +24,7 @@ use crate::geo::ellipsoid::{
 use crate::geo::projection::MapFrame;
 use crate::geo::rotations::{r_zyx, skew, zyx_angles};
 use crate::georef::{beam_s, ReturnTerms, Sensor};
-use crate::trajectory::{NavSample, Pose};
+use crate::trajectory::{NavPosition, Pose};
 use nalgebra::{Matrix3, Rotation3, SMatrix, Vector3};
 
 /// Number of error inputs.
@@ -462,7 +462,7 @@ impl FrameCache {
     pub fn frames(
         &mut self,
         x_e: &Vector3<f64>,
-        imu: &NavSample,
+        imu: &NavPosition,
     ) -> (&Matrix3<f64>, &Matrix3<f64>) {
         let mut moved = false;
         if Self::stale(&self.map_at_e, x_e) {

@@ -204,15 +204,6 @@ impl Propagator {
         }
     }
 
-    /// Replaces the timing inputs (e.g. by a synchronisation's estimate): the (t0, T)
-    /// covariance (s^2) and, if given, the attitude latency sigma (s).
-    pub fn set_timing(&mut self, clock_covariance_s2: Matrix2<f64>, sigma_latency_s: Option<f64>) {
-        self.inputs.clock_covariance_s2 = clock_covariance_s2;
-        if let Some(s) = sigma_latency_s {
-            self.inputs.sigma_attitude_latency_s = s;
-        }
-    }
-
     /// Variances along the output axes of one return.
     ///
     /// `r_n_to_out`: `d x_out / d x_e` times `R_n^e` at the IMU (e.g. from a

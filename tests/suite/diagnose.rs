@@ -12,7 +12,7 @@ use std::path::Path;
 /// The demo's city block, 25 s (one street and a corner), with `effects` (TOML lines of an
 /// `[effects]` table) injected, simulated into `dir/survey` with the demo pipeline beside it.
 fn city_block(dir: &Path, effects: &str, seed: u64) {
-    let text = kinescan::demo::SCENARIO.replace(
+    let text = kinescan::app::demo::SCENARIO.replace(
         "[nav_errors]",
         &format!("[effects]\n{effects}\n\n[nav_errors]"),
     );
@@ -20,7 +20,7 @@ fn city_block(dir: &Path, effects: &str, seed: u64) {
     sc.duration_s = 25.0;
     sc.seed = seed;
     run(&sc, &dir.join("survey"), 2);
-    std::fs::write(dir.join("pipeline.toml"), kinescan::demo::PIPELINE).unwrap();
+    std::fs::write(dir.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
 }
 
 fn observe_dir(

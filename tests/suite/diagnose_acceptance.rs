@@ -53,7 +53,7 @@ pub struct Score {
 /// The demo's city block scenario with `effects` injected, `seed`, simulated into `dir/survey`
 /// with the demo pipeline beside it.
 pub fn simulate_case(dir: &Path, effects: &str, seed: u64) {
-    let text = kinescan::demo::SCENARIO.replace(
+    let text = kinescan::app::demo::SCENARIO.replace(
         "[nav_errors]",
         &format!("[effects]\n{effects}\n\n[nav_errors]"),
     );
@@ -61,7 +61,7 @@ pub fn simulate_case(dir: &Path, effects: &str, seed: u64) {
     sc.seed = seed;
     let opts = SimOptions::default();
     simulate_scenario(&sc, &dir.join("survey"), &opts).unwrap();
-    std::fs::write(dir.join("pipeline.toml"), kinescan::demo::PIPELINE).unwrap();
+    std::fs::write(dir.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
 }
 
 /// Diagnoses the survey in `dir`.

@@ -9,7 +9,7 @@ use crate::pipeline_roundtrip::{clock, fixture};
 use crate::uncertainty_pipeline::{write_pipeline, write_profiles, FULL};
 use kinescan::io::profiles::{ProfileColumns, ProfileFile, ProfileWriter, RawReturn};
 use kinescan::pipeline::config;
-use kinescan::pipeline::executor::{run, RunOptions};
+use kinescan::pipeline::{run, RunOptions};
 use sha2::{Digest, Sha256};
 use std::path::Path;
 

@@ -3,7 +3,7 @@
 use kinescan::calib::boresight::BoresightConfig;
 use kinescan::calib::files::load_toml;
 use kinescan::calib::latency::LatencyConfig;
-use kinescan::pipeline::executor::RunOptions;
+use kinescan::pipeline::RunOptions;
 use kinescan::sim::{Scenario, SimOptions};
 use std::path::{Path, PathBuf};
 
@@ -67,7 +67,7 @@ fn the_demo_runs_and_matches_the_truth() {
         progress: false,
         ..RunOptions::default()
     };
-    let d = kinescan::demo::run_demo(dir.path(), &SimOptions::default(), &run).unwrap();
+    let d = kinescan::app::demo::run_demo(dir.path(), &SimOptions::default(), &run).unwrap();
     let t = &d.report.totals;
     assert_eq!(t.read, t.written + t.rejected_total());
     assert_eq!(d.compared, t.written);
@@ -139,9 +139,8 @@ fn sensitivity_studies_in_the_docs_run() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/sensitivity");
     for name in ["parking_lot_expected.toml", "parking_lot_ideal.toml"] {
         let out = tempfile::tempdir().unwrap();
-        let report =
-            kinescan::uncertainty::sensitivity::run_sensitivity(&root.join(name), out.path())
-                .unwrap_or_else(|e| panic!("docs/sensitivity/{name}: {e}"));
+        let report = kinescan::app::sensitivity::run_sensitivity(&root.join(name), out.path())
+            .unwrap_or_else(|e| panic!("docs/sensitivity/{name}: {e}"));
         assert!(out.path().join("sensitivity.json").exists(), "{name}");
         drop(report);
     }

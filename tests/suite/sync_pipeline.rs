@@ -7,7 +7,7 @@ use crate::sync_support;
 use kinescan::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
 use kinescan::io::patches::{write_patches, PlanarPatch};
 use kinescan::pipeline::config;
-use kinescan::pipeline::executor::{run, RunOptions};
+use kinescan::pipeline::{run, RunOptions};
 use std::path::Path;
 use sync_support::{scenario, survey, PAPER};
 

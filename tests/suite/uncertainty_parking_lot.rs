@@ -7,7 +7,7 @@
 //! returns; the Sobol indices are tied to them by the additivity check (the model is additive
 //! at these sigmas, the paper's own conclusion), so a regression in either is caught.
 
-use kinescan::uncertainty::sensitivity::{
+use kinescan::app::sensitivity::{
     load_sensitivity, run_sensitivity_config, PointResult, SensitivityReport,
 };
 use std::path::Path;

@@ -1,7 +1,7 @@
 //! Sobol machinery against analytic indices, and the sensitivity study end to end.
 
+use kinescan::app::sensitivity::{load_sensitivity, run_sensitivity};
 use kinescan::plot::PALETTE;
-use kinescan::uncertainty::sensitivity::{load_sensitivity, run_sensitivity};
 use kinescan::uncertainty::sobol::SaltelliDesign;
 use std::path::{Path, PathBuf};
 

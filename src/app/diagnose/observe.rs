@@ -16,7 +16,7 @@ use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::PlanarPatch;
 use crate::io::profiles::{ProfileFile, RawReturn};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
-use crate::pipeline::executor::open_profiles;
+use crate::pipeline::prepare::{open_profiles, PreparedInput};
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
 use crate::trajectory::{PoseCursor, Trajectory};
@@ -102,16 +102,16 @@ pub fn observe(
     let traj_opts = c.trajectory.options();
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
-    let files = open_profiles(&c.inputs.profiles, staging.path())?;
+    let files = open_profiles(c, staging.path())?;
     let index = PatchIndex::new(patches, opts);
     let mut counts = ObserveCounts {
         patches_read: patches.len(),
         ..Default::default()
     };
     let mut hits = Vec::new();
-    for (pass, (_, file)) in files.iter().enumerate() {
-        let model = ReturnModel::new(p, &traj, file)?;
-        let on = first_pass(&model, file, &index, &mut counts);
+    for (pass, input) in files.iter().enumerate() {
+        let model = ReturnModel::new(p, &traj, &input.file)?;
+        let on = first_pass(&model, &input.file, &index, &mut counts);
         hits.extend(on.into_iter().map(|h| (pass, h)));
     }
     if hits.is_empty() {
@@ -500,7 +500,7 @@ fn thin_evenly(run: &[Hit], max: usize) -> Vec<Hit> {
 fn second_pass(
     p: &LoadedPipeline,
     traj: &Trajectory,
-    files: &[(std::path::PathBuf, ProfileFile)],
+    files: &[PreparedInput],
     patches: &[PlanarPatch],
     index: &PatchIndex,
     visits: Vec<PendingVisit>,
@@ -508,7 +508,7 @@ fn second_pass(
 ) -> Result<ObservationSet> {
     let models = files
         .iter()
-        .map(|(_, f)| ReturnModel::new(p, traj, f))
+        .map(|input| ReturnModel::new(p, traj, &input.file))
         .collect::<Result<Vec<_>>>()?;
     // Reference indices: patches with at least one visit, in patch-file order.
     let mut reference_of = vec![None; patches.len()];
@@ -525,7 +525,14 @@ fn second_pass(
         .enumerate()
         .map(|(v, pv)| {
             let reference = reference_of[pv.patch].expect("listed above");
-            observe_visit(&models[pv.pass], &files[pv.pass].1, index, pv, v, reference)
+            observe_visit(
+                &models[pv.pass],
+                &files[pv.pass].file,
+                index,
+                pv,
+                v,
+                reference,
+            )
         })
         .collect();
     let mut set = ObservationSet {

@@ -3,10 +3,10 @@
 
 use crate::geo::projection::MapFrame;
 use crate::io::atomic::write_atomic;
-use crate::pipeline::config;
-use crate::pipeline::executor::{map_frame, run, RunOptions};
+use crate::pipeline::prepare::map_frame;
 use crate::pipeline::report::RunReport;
-use crate::pipeline::sink::ExtraSlots;
+use crate::pipeline::schema::OutputSchema;
+use crate::pipeline::{self, config, RunOptions};
 use crate::sim::{self, files, SimOptions};
 use crate::trajectory::{Trajectory, TrajectoryOptions};
 use crate::{Error, Result};
@@ -16,9 +16,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// The demo scenario (also `pipelines/scenario_city_block.toml`).
-pub const SCENARIO: &str = include_str!("../pipelines/scenario_city_block.toml");
+pub const SCENARIO: &str = include_str!("../../pipelines/scenario_city_block.toml");
 /// The demo pipeline (also `pipelines/demo_city_block.toml`), run beside the `survey` folder.
-pub const PIPELINE: &str = include_str!("../pipelines/demo_city_block.toml");
+pub const PIPELINE: &str = include_str!("../../pipelines/demo_city_block.toml");
 
 /// What the demo did and how good the result is.
 #[derive(Debug, Clone)]
@@ -43,28 +43,22 @@ pub struct DemoSummary {
 /// RMS of error / sigma along X, Y, Z, when the LAS has sigma fields.
 type NormalisedRms = Option<[f64; 3]>;
 
-/// Byte offsets of the extra dimensions the demo reads, from the pipeline's layout.
+/// Byte offsets (in a record's extra bytes) of the extra dimensions the demo reads.
 struct ExtraOffsets {
     return_index: usize,
     sigma_x: Option<usize>,
 }
 
 impl ExtraOffsets {
-    fn of(c: &crate::pipeline::config::PipelineConfig) -> Self {
-        let (slots, dims) = ExtraSlots::for_config(c);
-        let offset = |slot: usize| {
-            dims[..slot]
-                .iter()
-                .map(|d| d.data_type.size())
-                .sum::<usize>()
-        };
+    fn of(schema: &OutputSchema) -> Self {
+        let return_index = schema
+            .return_index
+            .expect("the demo pipeline writes return_index");
         ExtraOffsets {
-            return_index: offset(
-                slots
-                    .return_index
-                    .expect("the demo pipeline writes return_index"),
-            ),
-            sigma_x: slots.uncertainty.map(offset),
+            return_index: schema.extra_byte_offset(return_index),
+            sigma_x: schema
+                .uncertainty
+                .map(|u| schema.extra_byte_offset(u.sigma_x)),
         }
     }
 }
@@ -80,8 +74,7 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
     let pipeline = out.join("pipeline.toml");
     write_atomic(&pipeline, PIPELINE.as_bytes())?;
     let loaded = config::load(&pipeline, &[])?;
-    let report = run(&loaded, run_opts)?;
-    let report_path = loaded.config.output.report_path();
+    let report = pipeline::run(&loaded, run_opts)?;
     let traj = Trajectory::open(
         &loaded.config.inputs.sbet,
         None,
@@ -94,11 +87,12 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
         .first()
         .ok_or_else(|| Error::Invalid("demo wrote no LAS".into()))?
         .path;
-    let (errors, normalised) = compare(las, &truth, &frame, &ExtraOffsets::of(&loaded.config))?;
+    let offsets = ExtraOffsets::of(&OutputSchema::new(&loaded.config));
+    let (errors, normalised) = compare(las, &truth, &frame, &offsets)?;
     Ok(DemoSummary {
         simulate_s,
         report,
-        report_path,
+        report_path: loaded.config.output.report_path(),
         compared: errors.len() as u64,
         error_3d_m: stats_3d(&errors),
         error_h_v_rms_m: rms_h_v(&errors),

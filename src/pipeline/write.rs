@@ -1,20 +1,19 @@
-//! Where georeferenced points go: one or more LAS files, split per input or by point count,
-//! named predictably, each written atomically.
+//! Stage 5, **write**: where georeferenced points go. One or more LAS files, split per input or
+//! by point count, named predictably, each written atomically; records arrive encoded, in
+//! input order.
 
-use super::config::{PipelineConfig, SplitMode, UncertaintyConfig};
+use super::config::{PipelineConfig, SplitMode};
 use super::files::{numbered_part, per_input_part};
+use super::schema::OutputSchema;
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
-    stats_of_records, ChunkStats, ExtraDim, GpsTimeConvention, LasSummary, LasWriter,
-    LasWriterConfig, PointLayout,
+    stats_of_records, ChunkStats, GpsTimeConvention, LasSummary, LasWriter, LasWriterConfig,
+    PointLayout, SECONDS_PER_GPS_WEEK,
 };
 use crate::trajectory::Trajectory;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
-
-/// Seconds in a GPS week.
-const WEEK_S: f64 = 604_800.0;
 
 /// File-level settings shared by every output file of a run.
 pub struct SinkSettings {
@@ -27,12 +26,12 @@ pub struct SinkSettings {
 
 impl SinkSettings {
     /// Settings from the pipeline: scale, offset (map coordinates of the first trajectory
-    /// record, rounded to 1 km), GPS time convention, extra dimensions, CRS.
+    /// record, rounded to 1 km), GPS time convention, the schema's extra dimensions, CRS.
     pub fn new(
         c: &PipelineConfig,
+        schema: &OutputSchema,
         frame: &MapFrame,
         traj: &Trajectory,
-        _pipeline: &Path,
     ) -> Result<Self> {
         let first = traj.sbet().record(0);
         let g = Geodetic {
@@ -49,12 +48,8 @@ impl SinkSettings {
             Some(gps_week) => GpsTimeConvention::AdjustedStandard { gps_week },
             None => GpsTimeConvention::WeekSeconds,
         };
-        let layout = PointLayout::with_scale(
-            [c.output.scale_m; 3],
-            offset,
-            time,
-            ExtraSlots::for_config(c).1,
-        )?;
+        let layout =
+            PointLayout::with_scale([c.output.scale_m; 3], offset, time, schema.dims().to_vec())?;
         let (day, year) = creation_date(c.inputs.gps_week, first.time_s);
         let config = LasWriterConfig {
             layout,
@@ -74,72 +69,12 @@ impl SinkSettings {
     }
 }
 
-/// Which extra dimensions a run writes, and their slots in `LasPoint::extra`, in record
-/// order: `range`, `return_index`, then with `[uncertainty]` the fields of [`uncertainty_dims`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct ExtraSlots {
-    /// Slot of `range` (m).
-    pub range: Option<usize>,
-    /// Slot of `return_index`.
-    pub return_index: Option<usize>,
-    /// Slot of the first uncertainty dimension (`sigma_x`).
-    pub uncertainty: Option<usize>,
-}
-
-impl ExtraSlots {
-    /// Slots and descriptors, in record order, for a pipeline.
-    pub fn for_config(c: &PipelineConfig) -> (Self, Vec<ExtraDim>) {
-        let mut dims = Vec::new();
-        let mut slots = ExtraSlots::default();
-        if c.output.range_dimension {
-            slots.range = Some(dims.len());
-            dims.push(ExtraDim::f32("range", "measured range rho (m)"));
-        }
-        if c.output.return_index_dimension {
-            slots.return_index = Some(dims.len());
-            dims.push(ExtraDim::f64(
-                "return_index",
-                "record index in profile file",
-            ));
-        }
-        if let Some(u) = &c.uncertainty {
-            slots.uncertainty = Some(dims.len());
-            dims.extend(uncertainty_dims(u));
-        }
-        (slots, dims)
-    }
-}
-
-/// Uncertainty extra dimensions (docs/uncertainty.md): `sigma_x`, `sigma_y`, `sigma_z` (1 sigma
-/// along the file's X, Y, Z, m); with `write_95`, `thu95` and `tvu95` (95% horizontal and
-/// vertical, m); with `write_shares`, `share_<group>` for the six groups (fraction of the 3D
-/// variance, 0-1, one scaled byte each), in [`crate::uncertainty::Group`] order.
-pub fn uncertainty_dims(u: &UncertaintyConfig) -> Vec<ExtraDim> {
-    let mut dims = vec![
-        ExtraDim::f32("sigma_x", "1-sigma along X (m)"),
-        ExtraDim::f32("sigma_y", "1-sigma along Y (m)"),
-        ExtraDim::f32("sigma_z", "1-sigma along Z (m)"),
-    ];
-    if u.write_95 {
-        dims.push(ExtraDim::f32("thu95", "95% horizontal, 1.7308 sig_r (m)"));
-        dims.push(ExtraDim::f32("tvu95", "95% vertical, 1.96 sigma_z (m)"));
-    }
-    if u.write_shares {
-        for g in crate::uncertainty::Group::ALL {
-            let name = format!("share_{}", g.name());
-            let desc = format!("{} variance share", g.name());
-            dims.push(ExtraDim::fraction(&name, &desc));
-        }
-    }
-    dims
-}
-
 /// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",
 /// as the LAS specification allows) without a week, so output never depends on the clock.
 fn creation_date(gps_week: Option<u32>, sow: f64) -> (u16, u16) {
     let Some(week) = gps_week else { return (0, 0) };
     // GPS epoch 1980-01-06 is day 5 (0-based) of 1980; count whole days forward.
-    let mut days = (f64::from(week) * WEEK_S + sow).div_euclid(86_400.0) as i64 + 5;
+    let mut days = (f64::from(week) * SECONDS_PER_GPS_WEEK + sow).div_euclid(86_400.0) as i64 + 5;
     let mut year = 1980i64;
     loop {
         let len = if (year % 4 == 0 && year % 100 != 0) || year % 400 == 0 {

@@ -1,0 +1,203 @@
+//! The output schema, built once from the pipeline: which extra dimensions a run writes, in
+//! record order, their slots in [`LasPoint::extra`] and their byte offsets in a record's extra
+//! bytes; and [`PointFill`], which fills a [`LasPoint`] in place from a georeferenced return.
+//!
+//! Extra dimensions, in order: `range` (`output.range_dimension`), `return_index`
+//! (`output.return_index_dimension`), then with `[uncertainty]` `sigma_x`, `sigma_y`,
+//! `sigma_z`, with `write_95` `thu95`, `tvu95`, with `write_shares` the six `share_<group>`
+//! (docs/uncertainty.md).
+
+use super::config::{PipelineConfig, UncertaintyConfig};
+use super::georeference::GeoreferencedReturn;
+use crate::geo::rotations::wrap_pi;
+use crate::io::las::{ExtraDim, LasPoint};
+use crate::io::profiles::RawReturn;
+use crate::uncertainty::propagate::{AxisVariances, TVU95_FACTOR};
+use crate::uncertainty::Group;
+
+/// Slots (indices in [`LasPoint::extra`]) of the uncertainty dimensions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct UncertaintySlots {
+    /// `sigma_x`; `sigma_y` and `sigma_z` follow.
+    pub sigma_x: usize,
+    /// `thu95`, `tvu95` follows (with `write_95`).
+    pub thu95: Option<usize>,
+    /// The first `share_<group>`, the others follow in [`Group::ALL`] order (with
+    /// `write_shares`).
+    pub shares: Option<usize>,
+}
+
+/// The extra dimensions of a run and where each lives.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutputSchema {
+    dims: Vec<ExtraDim>,
+    /// Slot of `range` (m).
+    pub range: Option<usize>,
+    /// Slot of `return_index`.
+    pub return_index: Option<usize>,
+    /// Slots of the uncertainty dimensions.
+    pub uncertainty: Option<UncertaintySlots>,
+}
+
+impl OutputSchema {
+    /// The schema of a pipeline.
+    pub fn new(c: &PipelineConfig) -> Self {
+        let mut s = OutputSchema {
+            dims: Vec::new(),
+            range: None,
+            return_index: None,
+            uncertainty: None,
+        };
+        if c.output.range_dimension {
+            s.range = Some(s.push(ExtraDim::f32("range", "measured range rho (m)")));
+        }
+        if c.output.return_index_dimension {
+            let dim = ExtraDim::f64("return_index", "record index in profile file");
+            s.return_index = Some(s.push(dim));
+        }
+        if let Some(u) = &c.uncertainty {
+            s.uncertainty = Some(s.push_uncertainty(u));
+        }
+        s
+    }
+
+    /// Appends `dim`, giving its slot.
+    fn push(&mut self, dim: ExtraDim) -> usize {
+        self.dims.push(dim);
+        self.dims.len() - 1
+    }
+
+    fn push_uncertainty(&mut self, u: &UncertaintyConfig) -> UncertaintySlots {
+        let sigma_x = self.push(ExtraDim::f32("sigma_x", "1-sigma along X (m)"));
+        self.push(ExtraDim::f32("sigma_y", "1-sigma along Y (m)"));
+        self.push(ExtraDim::f32("sigma_z", "1-sigma along Z (m)"));
+        let thu95 = u.write_95.then(|| {
+            let first = self.push(ExtraDim::f32("thu95", "95% horizontal, 1.7308 sig_r (m)"));
+            self.push(ExtraDim::f32("tvu95", "95% vertical, 1.96 sigma_z (m)"));
+            first
+        });
+        let shares = u.write_shares.then(|| {
+            let first = self.dims.len();
+            for g in Group::ALL {
+                let name = format!("share_{}", g.name());
+                let desc = format!("{} variance share", g.name());
+                self.push(ExtraDim::fraction(&name, &desc));
+            }
+            first
+        });
+        UncertaintySlots {
+            sigma_x,
+            thu95,
+            shares,
+        }
+    }
+
+    /// The extra dimensions, in record order.
+    pub fn dims(&self) -> &[ExtraDim] {
+        &self.dims
+    }
+
+    /// Byte offset of the dimension in `slot` within a record's extra bytes (after the 30
+    /// bytes of point format 6).
+    pub fn extra_byte_offset(&self, slot: usize) -> usize {
+        self.dims[..slot].iter().map(|d| d.data_type.size()).sum()
+    }
+
+    /// The per-point fill for points of `point_source_id`.
+    pub fn fill(&self, point_source_id: u16) -> PointFill {
+        PointFill {
+            point_source_id,
+            range: self.range,
+            return_index: self.return_index,
+            uncertainty: self.uncertainty,
+        }
+    }
+}
+
+/// Fills a [`LasPoint`] in place (a point is ~190 bytes: moving it per return costs more than
+/// the georeferencing arithmetic).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PointFill {
+    point_source_id: u16,
+    range: Option<usize>,
+    return_index: Option<usize>,
+    uncertainty: Option<UncertaintySlots>,
+}
+
+impl PointFill {
+    /// The point of raw return `r` (record `index` of its file) georeferenced as `g`: map
+    /// coordinates, intensity, scan angle, GPS time, point source, `range`, `return_index`.
+    #[inline]
+    pub fn point(&self, r: &RawReturn, index: usize, g: &GeoreferencedReturn, p: &mut LasPoint) {
+        (p.x, p.y, p.z) = (g.x_map_m.x, g.x_map_m.y, g.x_map_m.z);
+        p.intensity = r.intensity;
+        p.scan_angle_deg = wrap_pi(r.beta_rad).to_degrees();
+        p.gps_time = g.t_s;
+        p.point_source_id = self.point_source_id;
+        if let Some(k) = self.range {
+            p.extra[k] = r.range_m;
+        }
+        if let Some(k) = self.return_index {
+            p.extra[k] = index as f64;
+        }
+    }
+
+    /// The uncertainty dimensions of `var`.
+    #[inline]
+    pub fn uncertainty(&self, var: &AxisVariances, p: &mut LasPoint) {
+        let Some(u) = self.uncertainty else { return };
+        let sigma = var.sigma_xyz_m();
+        p.extra[u.sigma_x..u.sigma_x + 3].copy_from_slice(sigma.as_slice());
+        if let Some(k) = u.thu95 {
+            // tvu95 = var.tvu95_m() without a second sqrt.
+            p.extra[k..k + 2].copy_from_slice(&[var.thu95_m(), TVU95_FACTOR * sigma.z]);
+        }
+        if let Some(k) = u.shares {
+            let shares = var.shares();
+            p.extra[k..k + shares.len()].copy_from_slice(&shares);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_follow_the_dimension_sizes() {
+        let text = r#"
+            [inputs]
+            sbet = "a.sbet"
+            smrmsg = "a.smrmsg"
+            profiles = ["p.ksprof"]
+            [sensor]
+            lever_arm_b_m = [0.0, 0.0, 0.0]
+            [time]
+            t0_s = 0.0
+            period_s = 0.01
+            [output]
+            las = "out.las"
+            return_index_dimension = true
+            [uncertainty]
+            sigma_lever_arm_b_m = [0.0, 0.0, 0.0]
+            sigma_boresight_deg = [0.0, 0.0, 0.0]
+            sigma_alpha_deg = 0.0
+            sigma_beta_deg = 0.0
+            sigma_range_m = 0.0
+            sigma_range_zero_m = 0.0
+            clock_covariance_s2 = [[0.0, 0.0], [0.0, 0.0]]
+            sigma_attitude_latency_s = 0.0
+            write_shares = true
+        "#;
+        let c: PipelineConfig = toml::from_str(text).unwrap();
+        let s = OutputSchema::new(&c);
+        let u = s.uncertainty.unwrap();
+        assert_eq!((s.range, s.return_index), (Some(0), Some(1)));
+        assert_eq!((u.sigma_x, u.thu95, u.shares), (2, None, Some(5)));
+        assert_eq!(s.dims().len(), 11);
+        // range f32, return_index f64, three f32 sigmas.
+        assert_eq!(s.extra_byte_offset(1), 4);
+        assert_eq!(s.extra_byte_offset(u.sigma_x), 12);
+        assert_eq!(s.extra_byte_offset(5), 24);
+    }
+}
