@@ -1,4 +1,4 @@
-//! The georeferencing equation (SPEC 4):
+//! The georeferencing equation (conventions §4):
 //! `x_e = r_e(t) + R_n^e(lat(t), lon(t)) * R_b^n(t + tau) * (l_b + R_s^b * x_s)`,
 //! `x_s = (1 + S 1e-6) (rho + K) * u_s(alpha, beta + dbeta)`,
 //! `u_s = (sin(alpha), -cos(alpha) sin(beta), cos(alpha) cos(beta))` (docs/conventions.md §3-4).
@@ -105,13 +105,13 @@ pub fn r_b_to_e(pose: &Pose) -> Matrix3<f64> {
     r_n_to_e(pose.nav.lat_rad, pose.nav.lon_rad) * pose.q_b_to_n.to_rotation_matrix().matrix()
 }
 
-/// ECEF point (m) of a scanner-frame point `x_s_m` for a pose (SPEC 4).
+/// ECEF point (m) of a scanner-frame point `x_s_m` for a pose (conventions §4).
 #[inline]
 pub fn georeference(pose: &Pose, sensor: &Sensor, x_s_m: &Vector3<f64>) -> Vector3<f64> {
     pose.nav.r_e_m + r_b_to_e(pose) * (sensor.lever_arm_b_m + sensor.r_s_to_b * x_s_m)
 }
 
-/// The terms of the SPEC 4 equation for one return, computed once and shared by the point
+/// The terms of the conventions §4 equation for one return, computed once and shared by the point
 /// ([`ReturnTerms::point_e`], identical to [`georeference`]) and the uncertainty Jacobian
 /// (`PointGeometry::jacobian_in_axes` of the uncertainty model), which needs the same rotations and
 /// beam trigonometry.
@@ -185,7 +185,7 @@ impl ReturnTerms {
         beam_of_trig(self.sin_cos_alpha, self.sin_cos_beta)
     }
 
-    /// ECEF point (m) for the IMU at `r_e_m` (SPEC 4).
+    /// ECEF point (m) for the IMU at `r_e_m` (conventions §4).
     #[inline]
     pub fn point_e(&self, r_e_m: &Vector3<f64>) -> Vector3<f64> {
         r_e_m + (self.r_n_to_e * self.r_b_to_n) * self.a_b_m

@@ -2,8 +2,11 @@
 //!
 //! Data flows one way through the modules: `geo` (ellipsoid, rotations, projections) ->
 //! `io` (file formats) -> `trajectory` -> `timing` -> `georef` -> `uncertainty` ->
-//! `pipeline`; `sim` and `calib` sit beside the pipeline and use the lower layers.
-//! Conventions (frames, signs, time model) follow `../shared/SPEC.md`, restated in `docs/`.
+//! `pipeline` (stages) -> `app` (commands that combine stages: demo, diagnose, sensitivity);
+//! `sim` and `calib` sit beside the pipeline and use the lower layers. docs/architecture.md
+//! maps the modules.
+//! Conventions (frames, signs, time model, files, effect catalogue) are docs/conventions.md;
+//! "conventions §N" in the code cites its section N.
 #![forbid(unsafe_op_in_unsafe_fn)]
 
 pub mod app;

@@ -1,4 +1,4 @@
-//! The scanner time model (SPEC 2): when did a return of profile `n` at mirror angle `beta`
+//! The scanner time model (conventions §2): when did a return of profile `n` at mirror angle `beta`
 //! happen?
 //!
 //! Software sync: `t = t0 + T * (n + f(beta))`; hardware (PPS) profile tags:
@@ -10,7 +10,7 @@ use crate::geo::rotations::wrap_two_pi;
 use crate::io::profiles::RawReturn;
 use std::f64::consts::TAU;
 
-/// How return times are obtained (SPEC 2).
+/// How return times are obtained (conventions §2).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum TimeModel {
@@ -50,7 +50,7 @@ pub enum MirrorDirection {
 }
 
 impl MirrorDirection {
-    /// `dir` of SPEC 2: +1 or -1.
+    /// `dir` of conventions §2: +1 or -1.
     pub fn sign(self) -> f64 {
         match self {
             MirrorDirection::Increasing => 1.0,

@@ -4,7 +4,7 @@
 //! ECEF position, latitude, longitude, height, NED velocity and body rates are linear in time
 //! between neighbouring records; attitude `R_b^n` is spherical-linear (quaternion slerp on the
 //! shorter arc, so heading wraps through 359 -> 1 deg correctly, never Euler interpolation).
-//! SMRMSG sigmas are linear in time. Latency (SPEC 2): [`PoseCursor`] evaluates position at `t`
+//! SMRMSG sigmas are linear in time. Latency (conventions §2): [`PoseCursor`] evaluates position at `t`
 //! and attitude at `t + tau`.
 
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
@@ -149,7 +149,7 @@ pub enum NavGap {
     OutsideAccuracy,
 }
 
-/// Navigation sigmas (1 sigma) at one instant (SPEC 5).
+/// Navigation sigmas (1 sigma) at one instant (conventions §5).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct NavSigma {
     /// North, east, down position sigma (m).
@@ -384,7 +384,7 @@ impl NavSample {
 }
 
 /// Pose for georeferencing one return: position at `t` (+ position latency), attitude at
-/// `t + tau` (SPEC 2). It carries one attitude, the one the equation uses.
+/// `t + tau` (conventions §2). It carries one attitude, the one the equation uses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pose {
     /// Position, geodetic coordinates and velocity at `t + position latency`.
@@ -422,7 +422,7 @@ pub struct PoseCursor<'a> {
 }
 
 impl<'a> PoseCursor<'a> {
-    /// Cursor with attitude latency `tau` and position latency (s), SPEC 2 signs.
+    /// Cursor with attitude latency `tau` and position latency (s), conventions §2 signs.
     pub fn new(traj: &'a Trajectory, attitude_latency_s: f64, position_latency_s: f64) -> Self {
         PoseCursor {
             pos: traj.cursor(),

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Check a kinescan LAS file with laspy, an independent reader (SPEC 7).
+"""Check a kinescan LAS file with laspy, an independent reader (conventions §7).
 
 Usage:
   python3 tests/laspy_check.py FILE.las --expect-epsg 32632 \

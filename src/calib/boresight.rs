@@ -5,9 +5,9 @@
 //! `R_k R_s^b u_ki = w_i` for all sites (paper: "foot vectors invariant"; unit vectors, because
 //! the cut moves along the legs from site to site). The boresight is parametrised as
 //! `R_s^b = Rz(dz) Ry(dy) Rx(dx) * R_nom`: a misalignment `d = (dx, dy, dz)` (rad) about the body
-//! axes (boresight roll, pitch, heading) on top of the nominal mounting `R_nom` (SPEC angles
-//! from the config). With `R_nom = I`, `d` are SPEC's `(bx, by, bz)` directly. The estimate is
-//! reported both as `d` and as SPEC angles of `R_s^b`, so a pipeline file takes it directly.
+//! axes (boresight roll, pitch, heading) on top of the nominal mounting `R_nom` (convention angles
+//! from the config). With `R_nom = I`, `d` are the conventions' `(bx, by, bz)` directly. The estimate is
+//! reported both as `d` and as convention angles of `R_s^b`, so a pipeline file takes it directly.
 //!
 //! Estimation: weighted Gauss-Newton on `d` and the tripod's orientation in NED from residuals
 //! `R_k R_s^b(d) u_ki - w_i` (9 per site). The cosine law makes the three `u_ki` of a site a
@@ -80,7 +80,7 @@ pub struct SiteResult {
 /// Boresight calibration result.
 #[derive(Debug, Clone, Serialize)]
 pub struct BoresightReport {
-    /// SPEC boresight `[bx, by, bz]` (deg): `R_s^b = Rz(bz) Ry(by) Rx(bx)`.
+    /// convention boresight `[bx, by, bz]` (deg): `R_s^b = Rz(bz) Ry(by) Rx(bx)`.
     pub boresight_deg: [f64; 3],
     /// Covariance of `boresight_deg` (deg^2), by first-order propagation.
     pub cov_boresight_deg2: [[f64; 3]; 3],
@@ -376,7 +376,7 @@ fn report(
     let rsb = r_s_b(&d, &nom);
     let spec = |r: &Matrix3<f64>| Vector3::from(<[f64; 3]>::from(zyx_angles(r)));
     let b = spec(&rsb);
-    // Jacobian of the SPEC angles with respect to the misalignment (central differences).
+    // Jacobian of the convention angles with respect to the misalignment (central differences).
     let mut g = Matrix3::zeros();
     for k in 0..3 {
         let mut e = Vector3::zeros();
@@ -471,7 +471,7 @@ fn default_axis() -> [f64; 3] {
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct BoresightScannerConfig {
-    /// Nominal boresight `[bx, by, bz]` (deg, SPEC), any size.
+    /// Nominal boresight `[bx, by, bz]` (deg, convention), any size.
     #[serde(default)]
     pub nominal_boresight_deg: [f64; 3],
     /// Range noise, 1 sigma (m), for fitting centres from `scans`.
@@ -580,7 +580,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
 /// One attitude row: site, line, angles and sigmas (rad).
 type AttitudeRow = (u64, usize, [f64; 3], [f64; 3]);
 
-/// Reads the site attitudes `site,roll_deg,...,sigma_heading_deg` (SPEC angles) in file order.
+/// Reads the site attitudes `site,roll_deg,...,sigma_heading_deg` (convention angles) in file order.
 fn read_attitudes(attitudes: &Path) -> Result<Vec<AttitudeRow>> {
     let a = CsvTable::read(attitudes)?;
     let names = [
@@ -717,8 +717,8 @@ fn config_sites(
 /// `kinescan calibrate boresight`: reads the TOML config at `config_path` (a
 /// [`BoresightConfig`]; unknown keys refused, errors name the key and the file) and the CSV files
 /// it names (paths relative to the config: ellipse centres in the scan plane, m; IMU attitudes,
-/// SPEC angles in deg), estimates the boresight ([`estimate_boresight`]) and writes
-/// `boresight.json` (the serialisable [`BoresightReport`]: SPEC boresight angles
+/// convention angles in deg), estimates the boresight ([`estimate_boresight`]) and writes
+/// `boresight.json` (the serialisable [`BoresightReport`]: convention boresight angles
 /// `R_s^b = Rz(bz) Ry(by) Rx(bx)` in deg, the matrix, the misalignment about body x, y, z on top
 /// of the nominal, covariances in deg^2) and `boresight_sites.csv` (per-site apex and leg
 /// residuals) atomically into `out_dir`.

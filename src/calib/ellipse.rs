@@ -1,7 +1,7 @@
 //! Tripod leg cross-sections from raw static scan returns: clustering and ellipse-centre fit.
 //!
 //! Frame: scanner frame `s`, `alpha0 = 0`: a return `(beta, rho)` is the in-plane point
-//! `(rho + K) * (-sin beta, cos beta)` in `(y_s, z_s)` (m), SPEC 3.
+//! `(rho + K) * (-sin beta, cos beta)` in `(y_s, z_s)` (m), conventions §3.
 //!
 //! **Clustering.** Returns are sorted by `beta` (cyclically: a leg across `beta = +-pi` stays
 //! whole) and split into runs wherever two neighbours differ in range by more than
@@ -42,7 +42,7 @@ pub const MIN_LEG_RETURNS: usize = 6;
 /// Longest leg run, in leg radii.
 pub const MAX_CHORD_RADII: f64 = 20.0;
 
-/// One return of a static scan (SPEC 6 fields).
+/// One return of a static scan (conventions §6 fields).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ScanReturn {
     /// Mirror angle (rad).
@@ -359,7 +359,7 @@ pub struct SiteCentres {
 
 /// Ellipse centres of legs 1, 2, 3 at one site from its raw returns: runs ([`leg_runs`]), a
 /// circle start, then refits with the ellipse shapes from the tripod solution ([`solve_site`]
-/// with `r_b_to_n` (the site's IMU attitude, SPEC) times the nominal boresight as the prior)
+/// with `r_b_to_n` (the site's IMU attitude, convention) times the nominal boresight as the prior)
 /// until the centres settle. Labelling: the legs are fixed in NED, so with `reference` (the
 /// `legs_n_prior` of an earlier site) the permutation whose prior NED leg directions best match
 /// it wins (the prior needs to be good to a few tens of degrees: legs are ~100 deg apart);

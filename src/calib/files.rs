@@ -1,15 +1,15 @@
 //! Files of the calibration commands: TOML configs, the CSV tables a lab records, atomic output.
 //!
-//! Scanner returns are read by the shared SPEC 6 reader (`io::profiles_csv`) and outputs are
+//! Scanner returns are read by the shared conventions §6 reader (`io::profiles_csv`) and outputs are
 //! written through `io::atomic`. The calibration-only tables below use the small [`CsvTable`]:
 //! the shared line reader and field parsers (`io::csv_text`) are private to `io`, and those
 //! tables are a few hundred lines read whole, with optional columns looked up by name.
 //!
 //! Formats (documented for users in `docs/calibration.md`):
-//! - scanner returns: SPEC 6 profile CSV `profile,beta_rad,range_m,intensity[,alpha_rad][,time_s]`;
+//! - scanner returns: conventions §6 profile CSV `profile,beta_rad,range_m,intensity[,alpha_rad][,time_s]`;
 //!   the latency calibration needs `time_s` (GPS time of the return, s).
 //! - table passes: `pass,t_start_s,t_end_s,table_rate_deg_s` (signed rate about the table axis).
-//! - IMU attitude stream: `time_s,roll_deg,pitch_deg,heading_deg` (SPEC attitude angles).
+//! - IMU attitude stream: `time_s,roll_deg,pitch_deg,heading_deg` (convention attitude angles).
 //! - tripod ellipse centres: `site,leg,y_s_m,z_s_m,sigma_m` (scan-plane coordinates, s frame).
 //! - tripod sites: `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,
 //!   sigma_heading_deg` (IMU attitude averaged over the static scan).

@@ -3,11 +3,11 @@
 //! The scanner and IMU turn together on a table at known angular rates `+omega` and `-omega`
 //! (rad/s, from the table's own log, about the unit axis `a_n` fixed in the NED frame `n`, whose
 //! origin is the table's centre of rotation). Each return (time `t`) is placed in `n` with the
-//! IMU attitude evaluated at `t + tau_applied` (SPEC 2):
+//! IMU attitude evaluated at `t + tau_applied` (conventions §2):
 //! `x_n = R_b^n(t + tau_applied) * (l_b + R_s^b * (rho + K) * u_s(alpha, beta))`.
 //! A residual latency `dtau = tau - tau_applied` rotates every return by `-omega * dtau` about
 //! `a_n`, so the fitted sphere centre of each direction is shifted:
-//! `c_pm = x - dtau * (omega_pm a_n) x x` (paper eq. 3 with the paper's `dt` = SPEC `tau`).
+//! `c_pm = x - dtau * (omega_pm a_n) x x` (paper eq. 3 with the paper's `dt` = convention `tau`).
 //! With `d = c_minus - c_plus` and `g = (omega_plus - omega_minus) a_n x xbar` the least-squares
 //! solution of eq. 3 in 3D (any axis) is `dtau = g.d / |g|^2`, variance
 //! `g^T (Cov_plus + Cov_minus) g / |g|^4`. Paper eq. 4 takes norms (`|d| / |g|`), which loses the
@@ -27,7 +27,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// One scanner return with its time tag (SPEC 6 profile CSV with `time_s`).
+/// One scanner return with its time tag (conventions §6 profile CSV with `time_s`).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TimedReturn {
     /// Profile counter.
@@ -53,7 +53,7 @@ pub struct TablePass {
     pub rate_rad_s: f64,
 }
 
-/// One IMU attitude record: stamp (GPS s) and SPEC angles roll, pitch, true heading (rad).
+/// One IMU attitude record: stamp (GPS s) and convention angles roll, pitch, true heading (rad).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AttitudeSample {
     /// Time stamp (s); the physical attitude is that of `time_s - tau`.
@@ -77,7 +77,7 @@ pub struct LatencyData {
     pub attitude: Vec<AttitudeSample>,
 }
 
-/// Sensor and target setup of a latency run (SI, SPEC frames).
+/// Sensor and target setup of a latency run (SI, convention frames).
 #[derive(Debug, Clone, PartialEq)]
 pub struct LatencySetup {
     /// Boresight `R_s^b` (scanner to body).
@@ -136,7 +136,7 @@ pub struct SpeedResult {
 }
 
 /// Latency calibration result: what a pipeline (`latency_s`) and the uncertainty model
-/// (`sigma_latency_s`) take (SPEC 2 sign: attitude evaluated at `t + latency_s`).
+/// (`sigma_latency_s`) take (conventions §2 sign: attitude evaluated at `t + latency_s`).
 #[derive(Debug, Clone, Serialize)]
 pub struct LatencyReport {
     /// Total IMU-to-scanner latency `tau` (s).
@@ -159,7 +159,7 @@ pub struct LatencyReport {
     pub n_outside_gate: usize,
 }
 
-/// Attitude stream interpolated by slerp (SPEC 4).
+/// Attitude stream interpolated by slerp (conventions §4).
 struct AttitudeStream {
     t: Vec<f64>,
     q: Vec<UnitQuaternion<f64>>,
@@ -266,7 +266,7 @@ fn point_n(setup: &LatencySetup, r_b_n: &Matrix3<f64>, r: &TimedReturn) -> Vecto
     r_b_n * (setup.lever_arm_b_m + setup.r_s_to_b * x_s)
 }
 
-/// SPEC beam direction `u_s(alpha, beta)`.
+/// convention beam direction `u_s(alpha, beta)`.
 pub fn beam_s(alpha_rad: f64, beta_rad: f64) -> Vector3<f64> {
     let (sa, ca) = alpha_rad.sin_cos();
     let (sb, cb) = beta_rad.sin_cos();
@@ -414,7 +414,7 @@ pub struct LatencyConfig {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct LatencyFiles {
-    /// Scanner returns, SPEC profile CSV with `time_s`.
+    /// Scanner returns, convention profile CSV with `time_s`.
     pub returns: PathBuf,
     /// Table passes CSV.
     pub passes: PathBuf,
@@ -448,7 +448,7 @@ fn default_gate() -> f64 {
     0.05
 }
 
-/// Scanner mounting and processing settings (SPEC 3).
+/// Scanner mounting and processing settings (conventions §3).
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScannerConfig {
@@ -504,7 +504,7 @@ impl LatencyConfig {
     }
 }
 
-/// Reads scanner returns (SPEC 6 profile CSV, through the shared
+/// Reads scanner returns (conventions §6 profile CSV, through the shared
 /// [`ProfileCsvReader`]: exact header, per-line checks naming the line); `time_s` is required.
 /// Missing returns (range 0 or empty) are skipped. `alpha0_rad` is used where there is no
 /// `alpha_rad` column.
@@ -613,8 +613,8 @@ pub const OUTPUT_FILES: [&str; 3] = [
 
 /// `kinescan calibrate latency`: reads the TOML config at `config_path` (a [`LatencyConfig`];
 /// unknown keys refused, errors name the key and the file) and the files it names (paths
-/// relative to the config: SPEC 6 returns with `time_s`, the table's pass log, the IMU attitude
-/// stream in SPEC angles), estimates the total latency `tau` (s; SPEC sign: the attitude of
+/// relative to the config: conventions §6 returns with `time_s`, the table's pass log, the IMU attitude
+/// stream in convention angles), estimates the total latency `tau` (s; convention sign: the attitude of
 /// `t + tau` belongs to a return at `t`) and writes `latency.json` (the [`LatencyReport`]),
 /// `latency_by_speed.csv` (the Table-2-like table) and `latency_by_speed.png` ([`latency_plot`])
 /// atomically into `out_dir`.

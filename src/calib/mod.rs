@@ -1,7 +1,7 @@
-//! Calibration tools (issue 5): sphere fitting, rotating-table latency calibration
+//! Calibration tools: sphere fitting, rotating-table latency calibration
 //! (paper 000) and tripod boresight calibration (paper 002), with their simulator scenarios.
 //!
-//! Conventions are SPEC's: latency `tau` with the attitude evaluated at `t + tau`; boresight
+//! Conventions are the conventions': latency `tau` with the attitude evaluated at `t + tau`; boresight
 //! `R_s^b = Rz(bz) Ry(by) Rx(bx)`; beam `u_s(alpha, beta)`. The user guide, file formats and the
 //! mapping of the papers' conventions are in `docs/calibration.md`.
 

@@ -8,7 +8,7 @@
 //! sphere placed in its scan plane at `sphere_beta_deg`, `sphere_distance_m` from the optical
 //! centre at table angle 0; an optional stand (vertical cylinder under the sphere) gives returns
 //! off the sphere. Ranges get Gaussian noise. The IMU stream is stamped `latency_ms` after the
-//! physical attitude (SPEC 2). Defaults are the paper's geometry: 20 cm sphere at 1.5 m,
+//! physical attitude (conventions §2). Defaults are the paper's geometry: 20 cm sphere at 1.5 m,
 //! 2-18 deg/s, 15 passes per direction, a point density of ~2000 sphere returns per pass at
 //! 6 deg/s (paper: ~30 000 points over 15 scans) and 5 mm noise per return (the HDS6200's
 //! position accuracy quoted in the paper; its 2 mm range noise alone gives centre sigmas 2.5x
@@ -35,7 +35,7 @@ use std::path::Path;
 pub struct TableScenario {
     /// Random seed.
     pub seed: u64,
-    /// Injected latency `tau` (ms, SPEC sign).
+    /// Injected latency `tau` (ms, convention sign).
     pub latency_ms: f64,
     /// Table speeds |omega| (deg/s).
     pub speeds_deg_s: Vec<f64>,
@@ -393,7 +393,7 @@ pub struct TableSimulationReport {
     pub n_passes: usize,
     /// IMU attitude records written to `imu_attitude.csv`.
     pub n_attitude: usize,
-    /// Injected (true) latency `tau` (s), SPEC sign: attitude stamps lag the physical attitude.
+    /// Injected (true) latency `tau` (s), convention sign: attitude stamps lag the physical attitude.
     pub true_latency_s: f64,
     /// Files written into the output directory.
     pub files: Vec<String>,
@@ -401,8 +401,8 @@ pub struct TableSimulationReport {
 
 /// `kinescan simulate` for the rotating table (paper 000): reads a [`TableScenario`] TOML at
 /// `config_path` (unknown keys refused) and writes, atomically into `out_dir`, the recorded
-/// files `sphere_returns.csv` (SPEC 6 profile CSV with `time_s`), `table_passes.csv`,
-/// `imu_attitude.csv` (SPEC angles, deg), the calibration config `calib_latency.toml` that
+/// files `sphere_returns.csv` (conventions §6 profile CSV with `time_s`), `table_passes.csv`,
+/// `imu_attitude.csv` (convention angles, deg), the calibration config `calib_latency.toml` that
 /// reads them and `truth.json` (see [`write_table_run`]).
 pub fn run_table_simulation(config_path: &Path, out_dir: &Path) -> Result<TableSimulationReport> {
     let sc: TableScenario = files::load_toml(config_path)?;

@@ -9,10 +9,10 @@
 //! ([`TripodScenario::simulate_scan`]) are written too, for the centre fit from scans. Defaults are the paper's simulation:
 //! legs at 60 deg, sites (roll, pitch, heading) = (-20, 0, 30), (0, 20, 120), (20, -20, 240) deg,
 //! and a scanner whose scan plane is horizontal in the body (`R_nom`: mirror axis `x_s` along
-//! body down, `beta = 0` forward; SPEC angles (0, -90, 180) deg), which the paper's sites need:
+//! body down, `beta = 0` forward; convention angles (0, -90, 180) deg), which the paper's sites need:
 //! a scan plane must be within ~30 deg of horizontal to cut all three legs of a standing
 //! tripod at any heading. The paper does not say how its sites' angles compose:
-//! `site_rotation` selects SPEC's order (default) or the order of the paper's printed matrix.
+//! `site_rotation` selects the conventions' order (default) or the order of the paper's printed matrix.
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
 use super::ellipse::{beam, CutShape};
@@ -50,9 +50,9 @@ pub struct TripodScenario {
     pub scanner_distance_m: f64,
     /// IMU roll, pitch, heading per site (deg), composed as `site_rotation` says.
     pub sites_deg: Vec<[f64; 3]>,
-    /// How `sites_deg` compose into the body-to-NED rotation (default: SPEC's).
+    /// How `sites_deg` compose into the body-to-NED rotation (default: the conventions').
     pub site_rotation: SiteRotation,
-    /// Nominal boresight (deg, SPEC).
+    /// Nominal boresight (deg, convention).
     pub nominal_boresight_deg: [f64; 3],
     /// True misalignment about body x, y, z on top of the nominal (deg).
     pub misalignment_deg: [f64; 3],
@@ -103,7 +103,7 @@ impl Default for TripodScenario {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum SiteRotation {
-    /// SPEC: `R_b^n = Rz(heading) Ry(pitch) Rx(roll)`.
+    /// convention: `R_b^n = Rz(heading) Ry(pitch) Rx(roll)`.
     Zyx,
     /// The order of paper 002's printed matrix: `R_b^n = Rx(roll) Ry(pitch) Rz(heading)`.
     Xyz,
@@ -119,7 +119,7 @@ impl TripodScenario {
         }
     }
 
-    /// SPEC attitude angles (roll, pitch, heading; rad) of site `k`: what its IMU reports.
+    /// convention attitude angles (roll, pitch, heading; rad) of site `k`: what its IMU reports.
     pub fn site_attitude_rad(&self, k: usize) -> [f64; 3] {
         let (r, p, h) = zyx_angles(&self.site_r_b_to_n(k));
         [r, p, h]
@@ -496,7 +496,7 @@ pub fn write_tripod_run(sc: &TripodScenario, sites: &[TripodSite], out_dir: &Pat
 /// `kinescan simulate` for the tripod (paper 002, section 5): reads a [`TripodScenario`] TOML at
 /// `config_path` (unknown keys refused) and writes atomically into `out_dir` one realisation as
 /// a lab records it (`tripod_centres.csv`: ellipse centres in the scan plane, m;
-/// `tripod_sites.csv`: IMU attitudes, SPEC angles in deg; `tripod_scans.csv`: raw returns),
+/// `tripod_sites.csv`: IMU attitudes, convention angles in deg; `tripod_scans.csv`: raw returns),
 /// the calibration configs `calib_boresight.toml` (centres), `calib_boresight_scans.toml`
 /// (scans) and `truth.json` ([`write_tripod_run`]). With
 /// `monte_carlo_trials > 0` it also runs the Monte Carlo and writes its outputs

@@ -1,7 +1,7 @@
 //! Tripod target geometry (paper 002, section 4.1): from the three points `C_i` where the scan
 //! plane cuts the tripod's leg axes (ellipse centres) to the apex `O` and the leg directions.
 //!
-//! Frame: scanner frame `s` (SPEC 3). A profile scanner with `alpha = 0` scans the plane
+//! Frame: scanner frame `s` (conventions §3). A profile scanner with `alpha = 0` scans the plane
 //! `x_s = 0`, so `C_i = (0, y_i, z_i)` (m). The paper's scan-plane frame has the plane as its
 //! x-z plane and the out-of-plane axis `y`; here the plane is `y_s`-`z_s` and the out-of-plane
 //! axis is `x_s`.
@@ -31,7 +31,7 @@ pub struct BoresightSetup {
     pub cos_leg_angles: [f64; 3],
     /// Unit tripod axis (apex towards feet) in NED.
     pub tripod_axis_n: Vector3<f64>,
-    /// Nominal boresight `R_nom` (SPEC `R_s^b` before calibration).
+    /// Nominal boresight `R_nom` (convention `R_s^b` before calibration).
     pub r_nominal_s_to_b: Matrix3<f64>,
 }
 

@@ -36,7 +36,7 @@ pub struct ValidateArgs {
     set: Vec<String>,
 }
 
-/// Convert CSV profiles (SPEC 6) to the memory-mapped binary form.
+/// Convert CSV profiles (conventions §6) to the memory-mapped binary form.
 #[derive(Args)]
 #[command(after_help = "Example:
   kinescan import pass1.csv pass1.ksprof")]

@@ -102,7 +102,7 @@ pub fn ecef_to_geodetic(x_e: &Vector3<f64>) -> Geodetic {
     }
 }
 
-/// Rotation from local North-East-Down `n` at (lat, lon) to ECEF `e`: `x_e = R_n^e x_n` (SPEC 3).
+/// Rotation from local North-East-Down `n` at (lat, lon) to ECEF `e`: `x_e = R_n^e x_n` (conventions §3).
 #[inline]
 pub fn r_n_to_e(lat_rad: f64, lon_rad: f64) -> Matrix3<f64> {
     let (sl, cl) = lat_rad.sin_cos();

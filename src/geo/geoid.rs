@@ -60,7 +60,10 @@ impl GeoidGrid {
             .map(str::to_ascii_lowercase);
         match ext.as_deref() {
             Some("gtx") => Self::from_gtx(path, &bytes),
-            Some("tif" | "tiff") => super::geoid_tiff::read(path, &bytes),
+            Some("tif" | "tiff") => {
+                let g = super::geoid_tiff::read(path, &bytes)?;
+                Self::new(path, g.corner_step_deg, g.rows, g.cols, g.n_m)
+            }
             _ => Err(Error::bad_file(
                 path,
                 "unknown geoid grid format: expected a .gtx or .tif/.tiff file",

@@ -10,7 +10,6 @@ use std::path::Path;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::tags::Tag;
 
-use super::geoid::GeoidGrid;
 use crate::{Error, Result};
 
 /// GeoTIFF key of the raster type (1 = PixelIsArea, 2 = PixelIsPoint).
@@ -19,8 +18,17 @@ const RASTER_PIXEL_IS_POINT: u16 = 2;
 /// GDAL's no-data tag (ASCII).
 const GDAL_NODATA_TAG: u16 = 42113;
 
+/// A grid as the file stores it: south-west node and steps `[south, west, dlat, dlon]` (deg),
+/// rows and columns, values row-major from the south row (NaN for no data).
+pub(crate) struct RawGrid {
+    pub corner_step_deg: [f64; 4],
+    pub rows: usize,
+    pub cols: usize,
+    pub n_m: Vec<f32>,
+}
+
 /// Reads the grid in `bytes` (the content of `path`).
-pub(crate) fn read(path: &Path, bytes: &[u8]) -> Result<GeoidGrid> {
+pub(crate) fn read(path: &Path, bytes: &[u8]) -> Result<RawGrid> {
     let bad = |problem: String| Error::bad_file(path, problem);
     let tiff_err = |e: tiff::TiffError| bad(format!("not a readable GeoTIFF grid: {e}"));
     let mut dec = Decoder::new(Cursor::new(bytes)).map_err(tiff_err)?;
@@ -69,7 +77,12 @@ pub(crate) fn read(path: &Path, bytes: &[u8]) -> Result<GeoidGrid> {
     let west = tie[3] + (half - tie[0]) * dlon;
     let north = tie[4] - (half - tie[1]) * dlat;
     let south = north - dlat * (rows as f64 - 1.0);
-    GeoidGrid::new(path, [south, west, dlat, dlon], rows, cols, n_m)
+    Ok(RawGrid {
+        corner_step_deg: [south, west, dlat, dlon],
+        rows,
+        cols,
+        n_m,
+    })
 }
 
 /// The value of `GTRasterTypeGeoKey` in a GeoKeyDirectory (header of 4 shorts, then entries

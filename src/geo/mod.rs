@@ -1,6 +1,6 @@
 //! Geodesy and rotations: the WGS84 ellipsoid, frame rotations, map projections.
 //!
-//! Frames (SPEC 3): `e` ECEF WGS84; `n` local North-East-Down; `b` body (x fwd, y right, z
+//! Frames (conventions §3): `e` ECEF WGS84; `n` local North-East-Down; `b` body (x fwd, y right, z
 //! down); `s` scanner. All angles in radians, lengths in metres.
 
 pub mod ellipsoid;

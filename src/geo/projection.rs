@@ -1,4 +1,4 @@
-//! Mapping frames `m` for output (SPEC 3): UTM with ellipsoidal height, ECEF, or local
+//! Mapping frames `m` for output (conventions §3): UTM with ellipsoidal height, ECEF, or local
 //! East-North-Up about a stated origin.
 //!
 //! UTM uses the Krüger n-series of the transverse Mercator projection to sixth order in the
@@ -87,7 +87,7 @@ macro_rules! kruger_beta {
 const ALPHA: [f64; 6] = kruger_alpha!(N);
 const BETA: [f64; 6] = kruger_beta!(N);
 
-/// A mapping frame for output coordinates (SPEC 3). Map coordinates are a `Vector3` whose
+/// A mapping frame for output coordinates (conventions §3). Map coordinates are a `Vector3` whose
 /// meaning depends on the variant:
 /// - `Utm`: (easting, northing, ellipsoidal height) in m, WGS84, k0 = 0.9996, false easting
 ///   500 000 m, false northing 0 (north) or 10 000 000 m (south). Height is *ellipsoidal*.

@@ -1,6 +1,6 @@
 //! Rotations between frames, angle wrapping and attitude interpolation helpers.
 //!
-//! Convention (SPEC 3): attitude `R_b^n = Rz(heading) * Ry(pitch) * Rx(roll)` maps body vectors
+//! Convention (conventions §3): attitude `R_b^n = Rz(heading) * Ry(pitch) * Rx(roll)` maps body vectors
 //! into North-East-Down; boresight `R_s^b = Rz(bz) * Ry(by) * Rx(bx)` maps scanner vectors into
 //! the body. `Rx`, `Ry`, `Rz` are active right-handed rotations about the axis (rad).
 

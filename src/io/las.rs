@@ -1,5 +1,5 @@
-//! LAS 1.4 writer (SPEC 7): point data record format 6 plus float Extra Bytes, a WKT CRS VLR,
-//! GPS time per SPEC 2.
+//! LAS 1.4 writer (conventions §7): point data record format 6 plus float Extra Bytes, a WKT CRS VLR,
+//! GPS time per conventions §2.
 //!
 //! Two halves so the pipeline can encode in parallel and write in order with memory independent
 //! of file size:
@@ -128,7 +128,7 @@ impl ExtraDim {
     }
 }
 
-/// Which GPS time the file carries (SPEC 2). Never mixed within one file.
+/// Which GPS time the file carries (conventions §2). Never mixed within one file.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GpsTimeConvention {
     /// GPS seconds of the week, as in the trajectory (global encoding bit 0 clear).
@@ -293,7 +293,7 @@ pub struct LasPoint {
     pub number_of_returns: u8,
     /// Scan angle (deg), -180..=180; stored as i16 in 0.006 deg counts.
     pub scan_angle_deg: f64,
-    /// GPS seconds of the week (SPEC 2 trajectory time). The encoder converts to the file's
+    /// GPS seconds of the week (conventions §2 trajectory time). The encoder converts to the file's
     /// convention ([`PointLayout::time`]); never pass adjusted standard time here.
     pub gps_time: f64,
     /// Point source ID (e.g. run or scanner number).

@@ -1,4 +1,4 @@
-//! File formats that cross the project's boundary (SPEC 6 and 7).
+//! File formats that cross the project's boundary (conventions §6 and 7).
 
 pub mod atomic;
 pub mod counters;

@@ -1,4 +1,4 @@
-//! Reference planar patches, CSV (SPEC 6): header
+//! Reference planar patches, CSV (conventions §6): header
 //! `id,lat_deg,lon_deg,h_m,normal_e,normal_n,normal_u,half_length_m,half_height_m[,sigma_m]`.
 //!
 //! A patch is a rectangle on a plane: its centre (WGS84 geodetic, degrees in the file, radians

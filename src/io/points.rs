@@ -1,4 +1,4 @@
-//! Control / sync points, CSV (SPEC 6): header `id,lat_deg,lon_deg,h_m,sigma_m`.
+//! Control / sync points, CSV (conventions §6): header `id,lat_deg,lon_deg,h_m,sigma_m`.
 //!
 //! Positions are WGS84 geodetic: latitude and longitude in degrees in the file (radians in
 //! [`ControlPoint`]), ellipsoidal height in metres; `sigma_m` is the 1-sigma 3D position

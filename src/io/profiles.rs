@@ -28,7 +28,7 @@ pub struct RawReturn {
     pub profile: u32,
     /// Raw intensity.
     pub intensity: u16,
-    /// Mirror angle beta (rad), SPEC 3.
+    /// Mirror angle beta (rad), conventions §3.
     pub beta_rad: f64,
     /// Measured range rho (m); 0 marks a missing return.
     pub range_m: f64,

@@ -1,8 +1,8 @@
-//! Raw scanner profiles, CSV form (SPEC 6): header `profile,beta_rad,range_m,intensity`,
+//! Raw scanner profiles, CSV form (conventions §6): header `profile,beta_rad,range_m,intensity`,
 //! optionally followed by `,alpha_rad` and/or `,time_s` (in that order). One return per line,
 //! ordered by profile counter. An empty or zero range is a missing return (range 0).
 //!
-//! Units: beta and alpha in radians (SPEC 3 scanner frame), range in metres, time in seconds
+//! Units: beta and alpha in radians (conventions §3 scanner frame), range in metres, time in seconds
 //! (hardware time tag), intensity a raw unsigned 16-bit count, profile an unsigned 32-bit
 //! counter. Everything streams: one line in memory at a time.
 

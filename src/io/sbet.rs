@@ -1,4 +1,4 @@
-//! Applanix SBET trajectory files (SPEC 6): 17 little-endian f64 per 136-byte record, no header.
+//! Applanix SBET trajectory files (conventions §6): 17 little-endian f64 per 136-byte record, no header.
 
 use super::timed::{TimedFile, TimedRecord, TimedWriter};
 

@@ -1,4 +1,4 @@
-//! Applanix SMRMSG accuracy files (SPEC 6): 10 little-endian f64 per 80-byte record.
+//! Applanix SMRMSG accuracy files (conventions §6): 10 little-endian f64 per 80-byte record.
 
 use super::timed::{TimedFile, TimedRecord, TimedWriter};
 

@@ -209,7 +209,7 @@ pub struct InputsConfig {
     #[serde(default = "one_u16")]
     pub first_point_source_id: u16,
     /// GPS week of the trajectory's seconds-of-week times. When given, LAS GPS time is
-    /// adjusted standard GPS time; when absent, GPS week seconds (SPEC 2).
+    /// adjusted standard GPS time; when absent, GPS week seconds (conventions §2).
     #[serde(default)]
     pub gps_week: Option<u32>,
 }
@@ -321,7 +321,7 @@ impl TimeConfig {
     }
 }
 
-/// `[latency]` (SPEC 2 signs).
+/// `[latency]` (conventions §2 signs).
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LatencyConfig {
@@ -445,7 +445,7 @@ pub struct OutputConfig {
     pub return_index_dimension: bool,
 }
 
-/// `[uncertainty]`: 1-sigma of the inputs not in the SMRMSG file (SPEC 5). Every sigma must be
+/// `[uncertainty]`: 1-sigma of the inputs not in the SMRMSG file (conventions §5). Every sigma must be
 /// given (0 is allowed and means "exact"), so no error source is dropped silently.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -5,7 +5,7 @@
 //! clock with its latencies, output frame, optional `[uncertainty]`), it takes a
 //! [`RawReturn`] and per-thread [`ReturnCursors`] and gives a [`GeoreferencedReturn`]: the
 //! return's time `t` (and its partials with respect to the clock), the pose (position at `t`,
-//! attitude at `t + tau`), the SPEC 4 terms, the ECEF point and the map point; and, with
+//! attitude at `t + tau`), the conventions §4 terms, the ECEF point and the map point; and, with
 //! `[uncertainty]`, the per-axis variances ([`ReturnGeoreferencer::variances`]) or the full
 //! geometry for partials ([`ReturnGeoreferencer::geometry`]). A return that cannot be
 //! georeferenced gives its [`RejectReason`].
@@ -142,7 +142,7 @@ pub struct GeoreferencedReturn {
     pub pose: Pose,
     /// SMRMSG sigmas at `t` (with `[uncertainty]`).
     pub nav_sigma: Option<NavSigma>,
-    /// The SPEC 4 terms (rotations, beam, lever arm).
+    /// The conventions §4 terms (rotations, beam, lever arm).
     pub terms: ReturnTerms,
     /// ECEF point (m).
     pub x_e_m: Vector3<f64>,

@@ -10,7 +10,7 @@
 //!    covariances; estimated from sync targets with `[sync]`) before anything is built from
 //!    it -> [`sync::Synced`].
 //! 4. **georeference** (+ uncertainty) ([`georeference::ReturnGeoreferencer`], one per
-//!    input): per return the time model, the pose, the SPEC 4 equation, the map projection
+//!    input): per return the time model, the pose, the conventions §4 equation, the map projection
 //!    and the per-point sigmas -> [`georeference::GeoreferencedReturn`], filled into a LAS
 //!    point by the [`schema::OutputSchema`]'s [`schema::PointFill`].
 //! 5. **write** ([`write::LasSink`]): encoded records written in input order, split into

@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RejectReason {
-    /// Range 0 or empty: the scanner recorded no echo (SPEC 6).
+    /// Range 0 or empty: the scanner recorded no echo (conventions §6).
     MissingReturn,
     /// A non-finite angle, range or time tag.
     NonFinite,

@@ -348,7 +348,7 @@ impl Default for NavErrorCfg {
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct OutputCfg {
-    /// Also write profiles as CSV (SPEC 6); large.
+    /// Also write profiles as CSV (conventions §6); large.
     pub profiles_csv: bool,
     /// Write the per-return truth sidecar (24 bytes per return).
     pub truth_points: bool,

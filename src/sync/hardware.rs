@@ -1,4 +1,4 @@
-//! Hardware (PPS) profile time tags (SPEC 2: `time_s` holds each profile's start `t_n`): the
+//! Hardware (PPS) profile time tags (conventions §2: `time_s` holds each profile's start `t_n`): the
 //! clock line `t_n = t0 + T n` fitted to every profile, and the comparison with the software
 //! synchronisation (paper 004, figure 6: hardware minus software profile times).
 

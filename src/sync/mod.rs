@@ -1,4 +1,4 @@
-//! Object-space time synchronisation (SPEC 2; paper 004, section 3.2): estimates the scanner
+//! Object-space time synchronisation (conventions §2; paper 004, section 3.2): estimates the scanner
 //! clock `t = t0 + T (n + f(beta))` from a few surveyed sync targets, so that no timing
 //! hardware is needed. Times are GPS seconds, angles radians, positions ECEF metres.
 //!

@@ -1,4 +1,4 @@
-//! Per-point propagated uncertainty and variance-based sensitivity (SPEC 5, issue 3).
+//! Per-point propagated uncertainty and variance-based sensitivity (conventions §5).
 //!
 //! - [`model`]: the georeferencing equation as a function of the 18 error inputs, exact and
 //!   linearised (analytic Jacobian).

@@ -1,4 +1,4 @@
-//! The error model of one return: the SPEC 4 equation as a function of the SPEC 5 input errors,
+//! The error model of one return: the conventions §4 equation as a function of the conventions §5 input errors,
 //! evaluated exactly (for Monte Carlo and Sobol) and linearised with an analytic Jacobian.
 //!
 //! The 18 error inputs, in this order ([`Input`]): INS position north, east, down (m, in `n`
@@ -139,7 +139,7 @@ impl Input {
 /// Number of input groups.
 pub const N_GROUPS: usize = 6;
 
-/// Input groups of SPEC 5 (the paper's groups 1-5 plus timing).
+/// Input groups of conventions §5 (the paper's groups 1-5 plus timing).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Group {
@@ -222,7 +222,7 @@ pub struct PointGeometry {
 }
 
 impl PointGeometry {
-    /// The geometry of a return georeferenced with `pose` and `sensor` (SPEC 4).
+    /// The geometry of a return georeferenced with `pose` and `sensor` (conventions §4).
     pub fn from_pose(
         pose: &Pose,
         sensor: &Sensor,
@@ -248,7 +248,7 @@ impl PointGeometry {
     }
 
     /// ECEF point (m) for the error vector `e` (model order; units of [`Input`]): the exact
-    /// nonlinear equation of the module documentation. `e = 0` gives the SPEC 4 point.
+    /// nonlinear equation of the module documentation. `e = 0` gives the conventions §4 point.
     pub fn point_e(&self, e: &[f64; N_INPUTS]) -> Vector3<f64> {
         let dt = e[Input::ClockTime as usize];
         let d_n = Vector3::new(e[0], e[1], e[2]) + self.v_n_mps * dt;

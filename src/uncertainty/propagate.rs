@@ -7,7 +7,7 @@ use crate::trajectory::NavSigma;
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
 
 /// Configured 1-sigma uncertainties of the inputs that do not come from the SMRMSG file
-/// (SPEC 5), in SI units.
+/// (conventions §5), in SI units.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct UncertaintyInputs {
     /// Lever arm x, y, z (m).

@@ -4,7 +4,7 @@ kinescan's estimator: the oracle for tests/calib_boresight.rs `estimator_attains
 
     python3 boresight_crb.py     # prints the bound (1-sigma, deg, at 1 mm centre noise)
 
-Model, from first principles (SPEC frames): tripod apex at the NED origin, legs
+Model, from first principles (convention frames): tripod apex at the NED origin, legs
 w_i = Rot(phi) e_i (60 deg off the vertical axis, azimuths a_i about it, the Rust simulator's
 axis basis: leg = cos60 z + sin60 (cos a y - sin a x)); at site k the scanner frame maps to NED
 by M_k = R_k Rz Ry Rx(d) R_nom, its optical centre is o_k + t_k, its scan plane is x_s = 0;

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""SALib oracle for kinescan's Sobol indices (issue 3 acceptance).
+"""SALib oracle for kinescan's Sobol indices (acceptance).
 
 Runs the model export (examples/salib_model.rs), then:
 1. same samples: SALib's sobol.analyze on our exported Saltelli design and outputs must give

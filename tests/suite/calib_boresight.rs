@@ -1,4 +1,4 @@
-//! Tripod boresight acceptance (issue 5, items 4-5): Monte Carlo of paper 002's simulation.
+//! Tripod boresight acceptance: Monte Carlo of paper 002's simulation.
 
 use kinescan::calib::boresight::estimate_boresight;
 use kinescan::calib::sim_tripod::{
@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 const TRIALS: usize = 1000;
 
 /// Cramer-Rao bound (1 sigma, deg, at 1 mm centre noise; scales with the noise) of the default
-/// scenario's geometry with the paper's sites composed SPEC's way (`zyx`) and in the order of
+/// scenario's geometry with the paper's sites composed the conventions' way (`zyx`) and in the order of
 /// the paper's printed matrix (`xyz`), from the independent `tests/oracle/boresight_crb.py`.
 const BOUND_ZYX_1MM_DEG: [f64; 3] = [0.07589, 0.02814, 0.85173];
 const BOUND_XYZ_1MM_DEG: [f64; 3] = [0.0254, 0.03448, 0.03822];

@@ -97,7 +97,7 @@ fn boresight_scenario_to_calibration() {
             "angle {k}"
         );
     }
-    // The SPEC angles written for a pipeline compose to the estimated R_s^b (at by = -90 deg
+    // The convention angles written for a pipeline compose to the estimated R_s^b (at by = -90 deg
     // bx and bz are not unique; the matrix is).
     let [bx, by, bz] = r.boresight_deg.map(f64::to_radians);
     let re = kinescan::geo::rotations::r_zyx(bx, by, bz);
@@ -163,7 +163,7 @@ fn cut_missing_a_leg_is_a_clear_error() {
     );
 }
 
-/// Returns are read by the shared SPEC 6 reader: its header and line checks apply, and the
+/// Returns are read by the shared conventions §6 reader: its header and line checks apply, and the
 /// latency calibration's own requirement (a `time_s` column) is a clear error.
 #[test]
 fn returns_file_errors_name_file_and_line() {

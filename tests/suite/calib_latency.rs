@@ -1,4 +1,4 @@
-//! Latency calibration acceptance (issue 5, items 2-3) on the rotating-table scenario.
+//! Latency calibration acceptance on the rotating-table scenario.
 
 use kinescan::calib::latency::{estimate_latency, read_passes, LatencyReport};
 use kinescan::calib::sim_table::{simulate_table, TableScenario};

@@ -1,4 +1,4 @@
-//! Sphere fit acceptance (issue 5, item 1): predicted vs empirical centre covariance, iteration
+//! Sphere fit acceptance: predicted vs empirical centre covariance, iteration
 //! count from the barycentre, robustness to 10 % returns off the sphere, bad input.
 
 use kinescan::calib::sphere::{fit_sphere, fit_sphere_robust, ray_sphere_range, SphereRadius};

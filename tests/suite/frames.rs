@@ -1,4 +1,4 @@
-//! Property tests of the frame conventions (SPEC 3): rotations, angle wrapping, geodetic/ECEF,
+//! Property tests of the frame conventions (conventions §3): rotations, angle wrapping, geodetic/ECEF,
 //! ENU, UTM round trips and the ENU-to-map Jacobian. Tolerances are a few hundred ulps of the
 //! quantities involved unless stated.
 

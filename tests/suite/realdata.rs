@@ -74,7 +74,7 @@ fn pdal_two_point_sbet_matches_pdal_to_printed_precision() {
         }
     }
     let r0 = f.record(0);
-    // True heading = platform heading - wander (SPEC 3): 3.0687574 rad = 175.8236 deg.
+    // True heading = platform heading - wander (conventions §3): 3.0687574 rad = 175.8236 deg.
     assert!((r0.true_heading_rad() - (3.046773230278662 + 0.02198414736922658)).abs() < 1e-12);
 }
 

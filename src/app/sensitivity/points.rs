@@ -51,7 +51,7 @@ pub fn flat_ground_point(
 
 /// The returns of a simulated survey studied for `[scenario]`: the scenario is simulated into
 /// a temporary directory, the returns are binned by range, and each chosen return gets the
-/// pipeline's geometry: its time from the configured clock (SPEC 2), the pose of the
+/// pipeline's geometry: its time from the configured clock (conventions §2), the pose of the
 /// navigation solution (`trajectory.sbet`) at that time, the configured sensor, and the
 /// SMRMSG sigmas at that time.
 pub fn scenario_points(s: &ScenarioPointsConfig) -> Result<Vec<(PointGeometry, NavSigma)>> {
