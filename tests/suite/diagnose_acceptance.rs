@@ -2,9 +2,11 @@
 //! catalogue effect injected at a size that moves points by 1-5 cm, no effect, effects outside
 //! the catalogue and two effects at once, over seeds; prints the table of rates.
 //!
-//! The full run (`full_acceptance_table`, >= 10 seeds per case) is `#[ignore]`d and runs in
-//! its own CI step (`cargo test --release -- --ignored full_acceptance_table`); a few seeds of
-//! three cases run in the normal suite.
+//! The full run (`full_acceptance_table`, >= 10 seeds per case) is an `#[ignore]`d
+//! MEASUREMENT, not a test: it prints the rates and asserts none of the thresholds,
+//! which the current statistics do not meet (docs/diagnosis.md, "Acceptance"). Run it with
+//! `cargo test --release -- --ignored full_acceptance_table --nocapture`; it is not in CI
+//! until its thresholds can be asserted. A few seeds of three cases run in the normal suite.
 
 use kinescan::app::diagnose::model::Effect;
 use kinescan::app::diagnose::report::{Diagnosis, Verdict};
@@ -347,7 +349,7 @@ pub fn other_cases() -> Vec<Case> {
 /// The acceptance table over `KINESCAN_ACCEPT_SEEDS` seeds (default 10) per case;
 /// `KINESCAN_ACCEPT_CASES=label,label` runs some cases only.
 #[test]
-#[ignore = "statistical acceptance, minutes in release: its own CI step"]
+#[ignore = "measurement of the acceptance rates (prints, asserts nothing); minutes in release"]
 fn full_acceptance_table() {
     let seeds: u64 = std::env::var("KINESCAN_ACCEPT_SEEDS")
         .ok()
