@@ -4,7 +4,6 @@
 
 use crate::common;
 
-use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -29,21 +28,7 @@ fn stderr(o: &Output) -> String {
 /// sync points and targets.
 fn survey(dir: &Path) {
     common::write_trajectory(dir);
-    let mut w =
-        ProfileWriter::create(&dir.join("pass1.ksprof"), ProfileColumns::default()).unwrap();
-    for n in 100..150u32 {
-        for k in 0..36 {
-            w.push(&RawReturn {
-                profile: n,
-                beta_rad: (k as f64 * 10.0 - 180.0).to_radians(),
-                range_m: 10.0,
-                intensity: 7,
-                ..Default::default()
-            })
-            .unwrap();
-        }
-    }
-    w.finish().unwrap();
+    common::write_ring_profiles(&dir.join("pass1.ksprof"), 100..150);
     let mut csv = String::from("profile,beta_rad,range_m,intensity\n");
     for n in 200..250 {
         csv += &format!("{n},0.5,10.0,9\n");

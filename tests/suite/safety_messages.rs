@@ -26,37 +26,11 @@ fn failure(dir: &Path, args: &[&str]) -> String {
     e
 }
 
-/// A pipeline over a one-file survey (10 profiles of 36 returns at 10 m).
-fn survey(dir: &Path) {
-    common::write_trajectory(dir);
-    let mut w = ProfileWriter::create(&dir.join("pass.ksprof"), ProfileColumns::default()).unwrap();
-    for n in 100..110u32 {
-        for k in 0..36 {
-            w.push(&RawReturn {
-                profile: n,
-                beta_rad: (k as f64 * 10.0 - 180.0).to_radians(),
-                range_m: 10.0,
-                intensity: 7,
-                ..Default::default()
-            })
-            .unwrap();
-        }
-    }
-    w.finish().unwrap();
-    let pipeline = format!(
-        "[inputs]\nsbet = \"traj.sbet\"\nprofiles = [\"pass.ksprof\"]\n\n\
-         [sensor]\nlever_arm_b_m = [0.5, 0.0, -1.5]\n\n[time]\nt0_s = {}\nperiod_s = 0.01\n\n\
-         [output]\nlas = \"out/day.las\"\n",
-        common::T_START_S
-    );
-    std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
-}
-
 #[test]
 fn bad_values_name_their_key() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d);
+    common::one_pass_survey(d, 10);
     let cases = [
         (
             "output.frame={kind=\"enu\",lat_deg=91,lon_deg=11,h_m=0}",
@@ -111,7 +85,7 @@ fn os_errors_are_printed_once() {
 fn a_directory_given_as_a_profile_file_is_called_a_directory() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d);
+    common::one_pass_survey(d, 10);
     std::fs::create_dir(d.join("pass_dir.ksprof")).unwrap();
     let e = failure(
         d,
@@ -225,7 +199,7 @@ fn a_file_cut_inside_its_last_line_is_refused_naming_the_line() {
 fn a_utm_frame_far_from_the_data_is_refused_naming_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d); // 11.575 E, 48.137 N: zone 32 (central meridian 9 E)
+    common::one_pass_survey(d, 10); // 11.575 E, 48.137 N: zone 32 (central meridian 9 E)
     let frame =
         |zone: u8, north: bool| format!("output.frame={{kind=\"utm\",zone={zone},north={north}}}");
     for cmd in ["run", "validate"] {

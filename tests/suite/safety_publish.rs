@@ -45,37 +45,11 @@ fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
     out
 }
 
-/// A one-pass survey of `profiles` profiles (36 returns each at 10 m) and its pipeline.
-fn survey(dir: &Path, profiles: u32) {
-    common::write_trajectory(dir);
-    let mut w = ProfileWriter::create(&dir.join("pass.ksprof"), ProfileColumns::default()).unwrap();
-    for n in 100..100 + profiles {
-        for k in 0..36 {
-            w.push(&RawReturn {
-                profile: n,
-                beta_rad: (k as f64 * 10.0 - 180.0).to_radians(),
-                range_m: 10.0,
-                intensity: 7,
-                ..Default::default()
-            })
-            .unwrap();
-        }
-    }
-    w.finish().unwrap();
-    let pipeline = format!(
-        "[inputs]\nsbet = \"traj.sbet\"\nprofiles = [\"pass.ksprof\"]\n\n\
-         [sensor]\nlever_arm_b_m = [0.5, 0.0, -1.5]\n\n[time]\nt0_s = {}\nperiod_s = 0.01\n\n\
-         [output]\nlas = \"out/day.las\"\n",
-        common::T_START_S
-    );
-    std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
-}
-
 #[test]
 fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d, 50);
+    common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
     let before = tree(&d.join("out"));
     // t0 far before the trajectory: every return falls outside it.
@@ -157,7 +131,7 @@ fn assert_no_temp(dir: &Path) {
 fn a_run_failing_late_publishes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d, 1000); // 36,000 returns: three chunks of the executor
+    common::one_pass_survey(d, 1000); // 36,000 returns: three chunks of the executor
     let split = [
         "--set",
         "output.split=\"max_points\"",
@@ -212,7 +186,7 @@ fn a_run_failing_late_publishes_nothing() {
 fn a_rerun_with_fewer_split_files_removes_the_previous_ones() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d, 50);
+    common::one_pass_survey(d, 50);
     let run = |max: &str| {
         let max = format!("output.max_points_per_file={max}");
         let args = [
@@ -244,7 +218,7 @@ fn a_rerun_with_fewer_split_files_removes_the_previous_ones() {
 fn a_las_range_problem_names_the_csv_line_and_the_key() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d, 5);
+    common::one_pass_survey(d, 5);
     let mut csv = String::from("profile,beta_rad,range_m,intensity\n");
     for n in 100..105 {
         csv += &format!("{n},0.5,10.0,9\n\n");
@@ -379,7 +353,7 @@ fn las_x_scale(path: &Path) -> f64 {
 fn two_concurrent_runs_never_leave_a_las_and_a_report_of_different_runs() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    survey(d, 300);
+    common::one_pass_survey(d, 300);
     let trials = 20;
     let (mut both_ran, mut refused) = (0, 0);
     for _ in 0..trials {
@@ -450,7 +424,7 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
         }
     }
     let _unmount = Unmount(&out);
-    survey(d, 50);
+    common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
     let before = tree(&out);
     profiles(&d.join("big.ksprof"), 1000, |_, _| {});

@@ -152,3 +152,36 @@ pub fn raise_max(acc: &mut f64, v: f64) {
     assert!(!v.is_nan(), "NaN among the values of a maximum");
     *acc = acc.max(v);
 }
+
+/// Writes `path`: profiles `profiles` of 36 returns each at 10 m, every 10 deg of mirror angle.
+pub fn write_ring_profiles(path: &Path, profiles: std::ops::Range<u32>) {
+    use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
+    let mut w = ProfileWriter::create(path, ProfileColumns::default()).unwrap();
+    for n in profiles {
+        for k in 0..36 {
+            w.push(&RawReturn {
+                profile: n,
+                beta_rad: (k as f64 * 10.0 - 180.0).to_radians(),
+                range_m: 10.0,
+                intensity: 7,
+                ..Default::default()
+            })
+            .unwrap();
+        }
+    }
+    w.finish().unwrap();
+}
+
+/// A one-pass survey in `dir` (the synthetic trajectory, `pass.ksprof` with `profiles`
+/// profiles from 100) and its `pipeline.toml` writing `out/day.las`.
+pub fn one_pass_survey(dir: &Path, profiles: u32) {
+    write_trajectory(dir);
+    write_ring_profiles(&dir.join("pass.ksprof"), 100..100 + profiles);
+    let pipeline = format!(
+        "[inputs]\nsbet = \"traj.sbet\"\nprofiles = [\"pass.ksprof\"]\n\n\
+         [sensor]\nlever_arm_b_m = [0.5, 0.0, -1.5]\n\n[time]\nt0_s = {}\nperiod_s = 0.01\n\n\
+         [output]\nlas = \"out/day.las\"\n",
+        T_START_S
+    );
+    std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
+}
