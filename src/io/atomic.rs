@@ -215,7 +215,7 @@ fn create_temp_file(dir: &Path, name: &str) -> std::io::Result<(PathBuf, File)> 
     }
 }
 
-fn parent_dir(path: &Path) -> &Path {
+pub(crate) fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -224,7 +224,7 @@ fn parent_dir(path: &Path) -> &Path {
 
 /// Makes a rename in `dir` durable. Filesystems that cannot fsync a folder (EINVAL) are
 /// accepted: the rename itself has happened.
-fn sync_dir(dir: &Path) -> std::io::Result<()> {
+pub(crate) fn sync_dir(dir: &Path) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         match File::open(dir)?.sync_all() {

@@ -6,7 +6,7 @@
 //!
 //! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
 
-use super::atomic::create_temp_dir;
+use super::atomic::{create_temp_dir, parent_dir, sync_dir};
 use crate::{Error, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -119,27 +119,6 @@ impl OutputSet {
             sync_dir(dir).map_err(|e| Error::io(dir, e))?;
         }
         Ok(moves.into_iter().map(|(_, to)| to).collect())
-    }
-}
-
-fn parent_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    }
-}
-
-fn sync_dir(dir: &Path) -> std::io::Result<()> {
-    #[cfg(unix)]
-    match File::open(dir)?.sync_all() {
-        // Some filesystems cannot fsync a folder; the renames have happened.
-        Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
-        other => other,
-    }
-    #[cfg(not(unix))]
-    {
-        let _ = dir;
-        Ok(())
     }
 }
 

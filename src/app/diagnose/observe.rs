@@ -236,19 +236,11 @@ impl<'a> ReturnModel<'a> {
 
     /// Time (s) of a return and its partials with respect to (t0, T) per the time model.
     fn time_of(&self, r: &RawReturn) -> (f64, [f64; 2]) {
-        match self.model {
-            TimeModel::Software => {
-                let (t, (a, b)) = self.clock.time_and_partials(r.profile, r.beta_rad);
-                (t, [a, b])
-            }
-            TimeModel::HardwareProfile => {
-                let (t, f) = self
-                    .clock
-                    .time_from_profile_tag_and_partial(r.time_s, r.beta_rad);
-                (t, [0.0, f])
-            }
-            TimeModel::HardwareReturn => (r.time_s, [0.0, 0.0]),
-        }
+        let clock = crate::timing::ReturnClock {
+            model: self.model,
+            clock: self.clock,
+        };
+        clock.time_and_partials(r)
     }
 
     /// d t / d beta (s/rad): the mirror fraction moves with the encoder angle.
