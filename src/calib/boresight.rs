@@ -26,17 +26,18 @@
 //! refused.
 
 use super::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
-use super::files::{self, CsvTable};
+use super::files::CsvTable;
 pub use super::tripod::BoresightSetup;
 use super::tripod::{leg_covariance_s, solve_site, TripodSolution};
 use crate::geo::rotations::{r_b_to_n, r_zyx, skew, zyx_angles};
 use crate::io::atomic::{write_atomic, write_json};
+use crate::io::config_file::{self, ConfigPath};
 use crate::io::paths::{check_collisions, in_out_dir};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix2, Matrix3, Rotation3, SMatrix, SVector, Vector2, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Gauss-Newton iteration limit.
 pub const MAX_ITERATIONS: usize = 20;
@@ -440,13 +441,13 @@ pub struct BoresightConfig {
 pub struct BoresightFiles {
     /// Ellipse centres `site,leg,y_s_m,z_s_m,sigma_m` (give this or `scans`).
     #[serde(default)]
-    pub centres: Option<PathBuf>,
+    pub centres: Option<ConfigPath>,
     /// Raw static scan returns `site,beta_rad,range_m,intensity` (`alpha0 = 0`); the centres
     /// are fitted ([`super::ellipse`]; needs `tripod.leg_radius_m`, `scanner.sigma_range_m`).
     #[serde(default)]
-    pub scans: Option<PathBuf>,
+    pub scans: Option<ConfigPath>,
     /// Site attitudes `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,sigma_heading_deg`.
-    pub sites: PathBuf,
+    pub sites: ConfigPath,
 }
 
 /// Tripod description.
@@ -679,9 +680,9 @@ fn config_sites(
     setup: &BoresightSetup,
 ) -> Result<Vec<TripodSite>> {
     let src = config_path.display().to_string();
-    let attitudes = files::resolve(config_path, &cfg.files.sites);
+    let attitudes = &cfg.files.sites;
     match (&cfg.files.centres, &cfg.files.scans) {
-        (Some(c), None) => read_sites(&files::resolve(config_path, c), &attitudes),
+        (Some(c), None) => read_sites(c, attitudes),
         (None, Some(s)) => {
             let model = LegScanModel {
                 leg_radius_m: cfg
@@ -704,7 +705,7 @@ fn config_sites(
                     })?,
                 range_zero_error_m: cfg.scanner.range_zero_error_m,
             };
-            read_scan_sites(&files::resolve(config_path, s), &attitudes, &model, setup)
+            read_scan_sites(s, attitudes, &model, setup)
         }
         _ => Err(Error::config(
             &src,
@@ -723,21 +724,18 @@ fn config_sites(
 /// of the nominal, covariances in deg^2) and `boresight_sites.csv` (per-site apex and leg
 /// residuals) atomically into `out_dir`.
 pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<BoresightReport> {
-    let cfg: BoresightConfig = files::load_toml(config_path)?;
+    let cfg: BoresightConfig = config_file::load(config_path, &[])?.value;
     let setup = cfg.setup(&config_path.display().to_string())?;
     let mut inputs = vec![
         ("config file".to_string(), config_path.to_path_buf()),
-        (
-            "files.sites".into(),
-            files::resolve(config_path, &cfg.files.sites),
-        ),
+        ("files.sites".into(), cfg.files.sites.to_path_buf()),
     ];
     for (key, f) in [
         ("files.centres", &cfg.files.centres),
         ("files.scans", &cfg.files.scans),
     ] {
         if let Some(f) = f {
-            inputs.push((key.into(), files::resolve(config_path, f)));
+            inputs.push((key.into(), f.to_path_buf()));
         }
     }
     check_collisions(

@@ -1,4 +1,5 @@
-//! Files of the calibration commands: TOML configs, the CSV tables a lab records, atomic output.
+//! Files of the calibration commands: the CSV tables a lab records (configs are read by
+//! `io::config_file`).
 //!
 //! Scanner returns are read by the shared conventions §6 reader (`io::profiles_csv`) and outputs are
 //! written through `io::atomic`. The calibration-only tables below use the small [`CsvTable`]:
@@ -15,44 +16,7 @@
 //!   sigma_heading_deg` (IMU attitude averaged over the static scan).
 
 use crate::{Error, Result};
-use serde::de::DeserializeOwned;
 use std::path::{Path, PathBuf};
-
-/// Reads and parses a TOML file. Errors name the file and the offending key (unknown keys are
-/// refused by `#[serde(deny_unknown_fields)]` on the config types).
-pub fn load_toml<T: DeserializeOwned>(path: &Path) -> Result<T> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    toml::from_str(&text).map_err(|e| {
-        let key = e
-            .span()
-            .and_then(|s| text.get(s))
-            .map(|s| {
-                s.lines()
-                    .next()
-                    .unwrap_or("")
-                    .trim()
-                    .chars()
-                    .take(60)
-                    .collect::<String>()
-            })
-            .filter(|s| !s.is_empty())
-            .unwrap_or_else(|| "(document)".into());
-        Error::config(
-            path.display().to_string(),
-            key,
-            e.message().trim().to_string(),
-        )
-    })
-}
-
-/// Resolves a path from a config file relative to the config's directory.
-pub fn resolve(config_path: &Path, file: &Path) -> PathBuf {
-    if file.is_absolute() {
-        file.to_path_buf()
-    } else {
-        config_path.parent().unwrap_or(Path::new(".")).join(file)
-    }
-}
 
 /// A CSV table read whole: column names and rows of fields with their 1-based line numbers.
 pub struct CsvTable {

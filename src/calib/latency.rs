@@ -14,10 +14,11 @@
 //! sign and is biased upwards by noise; the projection keeps the sign and is unbiased, and equals
 //! eq. 4 when `d` is parallel to `g`. Speeds are combined by inverse-variance weights.
 
-use super::files::{self, CsvTable};
+use super::files::CsvTable;
 use super::sphere::{fit_sphere_robust, SphereFit, SphereRadius};
 use crate::geo::rotations::{q_b_to_n, r_zyx};
 use crate::io::atomic::{write_atomic, write_json};
+use crate::io::config_file::{self, ConfigPath};
 use crate::io::paths::{check_collisions, in_out_dir};
 use crate::io::profiles_csv::ProfileCsvReader;
 use crate::plot::Plot;
@@ -25,7 +26,7 @@ use crate::{Error, Result};
 use nalgebra::{Matrix3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// One scanner return with its time tag (conventions §6 profile CSV with `time_s`).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -415,11 +416,11 @@ pub struct LatencyConfig {
 #[serde(deny_unknown_fields)]
 pub struct LatencyFiles {
     /// Scanner returns, convention profile CSV with `time_s`.
-    pub returns: PathBuf,
+    pub returns: ConfigPath,
     /// Table passes CSV.
-    pub passes: PathBuf,
+    pub passes: ConfigPath,
     /// IMU attitude stream CSV.
-    pub attitude: PathBuf,
+    pub attitude: ConfigPath,
 }
 
 /// Table geometry.
@@ -619,11 +620,11 @@ pub const OUTPUT_FILES: [&str; 3] = [
 /// `latency_by_speed.csv` (the Table-2-like table) and `latency_by_speed.png` ([`latency_plot`])
 /// atomically into `out_dir`.
 pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<LatencyReport> {
-    let cfg: LatencyConfig = files::load_toml(config_path)?;
+    let cfg: LatencyConfig = config_file::load(config_path, &[])?.value;
     let setup = cfg.setup(&config_path.display().to_string())?;
-    let returns = files::resolve(config_path, &cfg.files.returns);
-    let passes = files::resolve(config_path, &cfg.files.passes);
-    let attitude = files::resolve(config_path, &cfg.files.attitude);
+    let returns = cfg.files.returns.to_path_buf();
+    let passes = cfg.files.passes.to_path_buf();
+    let attitude = cfg.files.attitude.to_path_buf();
     check_collisions(
         &[
             ("config file".into(), config_path.to_path_buf()),

@@ -15,11 +15,11 @@
 //! below the paper's Table 2, while 5 mm gives ~80 % of Table 2's centre STD and 0.087 ms
 //! latency sigma at 18 deg/s against the paper's 0.09 ms).
 
-use super::files;
 use super::latency::{beam_s, AttitudeSample, LatencyData, LatencySetup, TablePass, TimedReturn};
 use super::sphere::{ray_sphere_range, SphereRadius};
 use crate::geo::rotations::{r_b_to_n, r_zyx, roll_pitch_heading, wrap_two_pi};
 use crate::io::atomic::{write_atomic, write_json};
+use crate::io::config_file;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Unit, UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -405,7 +405,7 @@ pub struct TableSimulationReport {
 /// `imu_attitude.csv` (convention angles, deg), the calibration config `calib_latency.toml` that
 /// reads them and `truth.json` (see [`write_table_run`]).
 pub fn run_table_simulation(config_path: &Path, out_dir: &Path) -> Result<TableSimulationReport> {
-    let sc: TableScenario = files::load_toml(config_path)?;
+    let sc: TableScenario = config_file::load(config_path, &[])?.value;
     crate::io::paths::check_collisions(
         &[("config file".into(), config_path.to_path_buf())],
         &crate::io::paths::in_out_dir(out_dir, &OUTPUT_FILES),

@@ -16,9 +16,9 @@
 
 use super::boresight::{estimate_boresight, BoresightSetup, TripodSite};
 use super::ellipse::{beam, CutShape};
-use super::files;
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
 use crate::io::atomic::{write_atomic, write_json};
+use crate::io::config_file;
 use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
@@ -507,7 +507,7 @@ pub fn run_tripod_simulation(
     config_path: &Path,
     out_dir: &Path,
 ) -> Result<Option<MonteCarloSummary>> {
-    let sc: TripodScenario = files::load_toml(config_path)?;
+    let sc: TripodScenario = config_file::load(config_path, &[])?.value;
     crate::io::paths::check_collisions(
         &[("config file".into(), config_path.to_path_buf())],
         &crate::io::paths::in_out_dir(out_dir, &OUTPUT_FILES),

@@ -41,7 +41,7 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
     }
     let loaded = config::load(&a.pipeline, &a.set)?;
     let section = loaded.config.diagnose.clone().unwrap_or_default();
-    let Some(patches) = a.patches.clone().or(section.patches) else {
+    let Some(patches) = a.patches.clone().or(section.patches.map(PathBuf::from)) else {
         bail!(
             "{}: no reference patches: give --patches FILE or diagnose.patches",
             a.pipeline.display()
@@ -50,7 +50,7 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
     let out_dir = a
         .out
         .clone()
-        .or(section.out)
+        .or(section.out.map(PathBuf::from))
         .unwrap_or_else(|| PathBuf::from("diagnosis"));
     let started = std::time::Instant::now();
     let d = diagnose::run(

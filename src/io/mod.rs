@@ -1,6 +1,7 @@
 //! File formats that cross the project's boundary (conventions §6 and 7).
 
 pub mod atomic;
+pub mod config_file;
 pub mod counters;
 mod csv_text;
 pub mod digest;

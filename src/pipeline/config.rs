@@ -3,12 +3,14 @@
 //! A pipeline file has one table per stage, in the order the data flows: `[inputs]` (read),
 //! `[trajectory]`, `[sensor]`, `[time]` (scanner clock), `[latency]`, `[uncertainty]`
 //! (optional per-point sigmas), `[output]` (georeference and write). Unknown keys are refused,
-//! naming the key and the file. Relative paths are relative to the pipeline file's folder.
+//! naming the key and the file (`io::config_file`). Paths are `ConfigPath`s: relative ones are
+//! resolved against the pipeline file's folder when it is loaded.
 //! Angles are given in degrees (keys ending `_deg`) and converted once, here.
 //! docs/pipeline.md documents every option.
 
 use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
+use crate::io::config_file::{self, ConfigPath};
 use crate::timing::MirrorDirection;
 pub use crate::timing::TimeModel;
 use crate::{Error, Result};
@@ -51,10 +53,10 @@ pub struct PipelineConfig {
 pub struct DiagnoseConfig {
     /// Reference planar patches (patch CSV).
     #[serde(default)]
-    pub patches: Option<PathBuf>,
+    pub patches: Option<ConfigPath>,
     /// Output folder of the diagnosis.
     #[serde(default)]
-    pub out: Option<PathBuf>,
+    pub out: Option<ConfigPath>,
     /// A return further than this from its patch plane is not an observation (m).
     #[serde(default = "default_plane_tolerance_m")]
     pub plane_tolerance_m: f64,
@@ -132,10 +134,10 @@ fn default_diagnose_alpha() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct SyncConfig {
     /// Sync points (control-point CSV: target centres).
-    pub points: PathBuf,
+    pub points: ConfigPath,
     /// Target faces (patches CSV, ids as in `points`): needed by `method = "refined"`.
     #[serde(default)]
-    pub targets: Option<PathBuf>,
+    pub targets: Option<ConfigPath>,
     /// Approximate t0 (s); default `time.t0_s`.
     #[serde(default)]
     pub t0_approx_s: Option<f64>,
@@ -198,13 +200,13 @@ fn default_sync_min_span_s() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct InputsConfig {
     /// Applanix SBET trajectory.
-    pub sbet: PathBuf,
+    pub sbet: ConfigPath,
     /// Applanix SMRMSG accuracy file (needed for uncertainty).
     #[serde(default)]
-    pub smrmsg: Option<PathBuf>,
+    pub smrmsg: Option<ConfigPath>,
     /// Scanner profile files, one per pass (binary `.ksprof` or CSV `.csv`). Pass `k` (from 0)
     /// gets point source id `first_point_source_id + k`.
-    pub profiles: Vec<PathBuf>,
+    pub profiles: Vec<ConfigPath>,
     /// Point source id of the first profile file.
     #[serde(default = "one_u16")]
     pub first_point_source_id: u16,
@@ -410,10 +412,10 @@ pub enum Strictness {
 #[serde(deny_unknown_fields)]
 pub struct OutputConfig {
     /// Output LAS path (the base name when split).
-    pub las: PathBuf,
+    pub las: ConfigPath,
     /// Run report path (JSON); default: `<las stem>.report.json` beside the LAS.
     #[serde(default)]
-    pub report: Option<PathBuf>,
+    pub report: Option<ConfigPath>,
     /// Mapping frame.
     #[serde(default = "default_frame")]
     pub frame: FrameConfig,
@@ -566,69 +568,22 @@ fn default_strictness() -> Strictness {
 pub struct LoadedPipeline {
     /// Pipeline file.
     pub path: PathBuf,
-    /// The configuration, paths made absolute or relative to the current directory.
+    /// The configuration, every path absolute (resolved against the pipeline file's folder).
     pub config: PipelineConfig,
     /// `--set` overrides applied, as given.
     pub overrides: Vec<String>,
 }
 
-/// Reads `path`, applies `KEY=VALUE` overrides (dotted keys; VALUE parsed as TOML, or taken as
-/// a string when it does not parse), validates and resolves relative paths.
+/// Reads `path`, applies `KEY=VALUE` overrides (`io::config_file`), validates and resolves
+/// relative paths against the file's folder.
 pub fn load(path: &Path, overrides: &[String]) -> Result<LoadedPipeline> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let mut value: toml::Table = text
-        .parse()
-        .map_err(|e: toml::de::Error| Error::config(&name, "(syntax)", e.to_string()))?;
-    for o in overrides {
-        apply_override(&mut value, o)?;
-    }
-    let source = if overrides.is_empty() {
-        name.clone()
-    } else {
-        format!("{name} (with --set)")
-    };
-    let mut config: PipelineConfig = serde_path_to_error::deserialize(toml::Value::Table(value))
-        .map_err(|e| Error::config(&source, e.path().to_string(), e.inner().message()))?;
-    validate(&config, &source)?;
-    resolve_paths(&mut config, path.parent().unwrap_or(Path::new(".")));
+    let parsed = config_file::load::<PipelineConfig>(path, overrides)?;
+    validate(&parsed.value, &parsed.source)?;
     Ok(LoadedPipeline {
         path: path.to_path_buf(),
-        config,
+        config: parsed.value,
         overrides: overrides.to_vec(),
     })
-}
-
-/// Sets a dotted `key=value` in a TOML table.
-pub fn apply_override(table: &mut toml::Table, assignment: &str) -> Result<()> {
-    let (key, raw) = assignment
-        .split_once('=')
-        .ok_or_else(|| Error::config("--set", assignment, "expected KEY=VALUE"))?;
-    let key = key.trim();
-    let parts: Vec<&str> = key.split('.').collect();
-    if parts.iter().any(|p| p.is_empty()) {
-        return Err(Error::config("--set", key, "empty key segment"));
-    }
-    let value = parse_value(raw.trim());
-    let mut t = table;
-    for p in &parts[..parts.len() - 1] {
-        let entry = t
-            .entry(p.to_string())
-            .or_insert_with(|| toml::Value::Table(Default::default()));
-        t = entry
-            .as_table_mut()
-            .ok_or_else(|| Error::config("--set", key, format!("`{p}` is not a table")))?;
-    }
-    t.insert(parts[parts.len() - 1].to_string(), value);
-    Ok(())
-}
-
-fn parse_value(raw: &str) -> toml::Value {
-    let doc = format!("v = {raw}");
-    match doc.parse::<toml::Table>() {
-        Ok(mut t) => t.remove("v").expect("parsed key"),
-        Err(_) => toml::Value::String(raw.to_string()),
-    }
 }
 
 fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
@@ -855,30 +810,4 @@ fn validate_diagnose(d: &DiagnoseConfig, source: &str) -> Result<()> {
         return bad("diagnose.alpha", format!("must be in (0, 0.5), got {v}"));
     }
     Ok(())
-}
-
-fn resolve_paths(c: &mut PipelineConfig, base: &Path) {
-    let fix = |p: &mut PathBuf| {
-        if p.is_relative() {
-            *p = base.join(&*p);
-        }
-    };
-    fix(&mut c.inputs.sbet);
-    if let Some(p) = c.inputs.smrmsg.as_mut() {
-        fix(p);
-    }
-    c.inputs.profiles.iter_mut().for_each(fix);
-    fix(&mut c.output.las);
-    if let Some(p) = c.output.report.as_mut() {
-        fix(p);
-    }
-    if let Some(d) = c.diagnose.as_mut() {
-        d.patches.iter_mut().chain(d.out.iter_mut()).for_each(fix);
-    }
-    if let Some(sy) = c.sync.as_mut() {
-        fix(&mut sy.points);
-        if let Some(p) = sy.targets.as_mut() {
-            fix(p);
-        }
-    }
 }

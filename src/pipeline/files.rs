@@ -10,7 +10,8 @@ impl OutputConfig {
     /// The run report's path: `output.report`, or `<las stem>.report.json` beside the LAS.
     pub fn report_path(&self) -> PathBuf {
         self.report
-            .clone()
+            .as_deref()
+            .map(Path::to_path_buf)
             .unwrap_or_else(|| self.las.with_extension("report.json"))
     }
 
@@ -43,22 +44,22 @@ pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
     let c = &p.config;
     let mut v = vec![
         ("pipeline file".to_string(), p.path.clone()),
-        ("inputs.sbet".to_string(), c.inputs.sbet.clone()),
+        ("inputs.sbet".to_string(), c.inputs.sbet.to_path_buf()),
     ];
     if let Some(s) = &c.inputs.smrmsg {
-        v.push(("inputs.smrmsg".into(), s.clone()));
+        v.push(("inputs.smrmsg".into(), s.to_path_buf()));
     }
     for (k, f) in c.inputs.profiles.iter().enumerate() {
-        v.push((format!("inputs.profiles[{k}]"), f.clone()));
+        v.push((format!("inputs.profiles[{k}]"), f.to_path_buf()));
     }
     if let Some(sy) = &c.sync {
-        v.push(("sync.points".into(), sy.points.clone()));
+        v.push(("sync.points".into(), sy.points.to_path_buf()));
         if let Some(t) = &sy.targets {
-            v.push(("sync.targets".into(), t.clone()));
+            v.push(("sync.targets".into(), t.to_path_buf()));
         }
     }
     if let Some(patches) = c.diagnose.as_ref().and_then(|d| d.patches.as_ref()) {
-        v.push(("diagnose.patches".into(), patches.clone()));
+        v.push(("diagnose.patches".into(), patches.to_path_buf()));
     }
     v
 }
@@ -70,7 +71,7 @@ pub fn outputs(c: &PipelineConfig) -> Vec<KeyedPath> {
     let o = &c.output;
     let stem = o.stem();
     let mut v: Vec<KeyedPath> = match o.split {
-        SplitMode::None => vec![("output.las".into(), o.las.clone())],
+        SplitMode::None => vec![("output.las".into(), o.las.to_path_buf())],
         SplitMode::PerInput => c
             .inputs
             .profiles

@@ -142,7 +142,7 @@ pub fn open_profiles(c: &PipelineConfig, staging: &Path) -> Result<Vec<PreparedI
                 return Err(Error::bad_file(path, msg));
             }
             Ok(PreparedInput {
-                original: path.clone(),
+                original: path.to_path_buf(),
                 file,
                 point_source_id: first_id.saturating_add(k as u16),
                 record_lines,

@@ -28,9 +28,9 @@ pub fn publish_run(
     let previous = previous_outputs(&report_path, las);
     let mut set = OutputSet::new(&c.output.stem());
     let mut staged = p.clone();
-    staged.config.output.las = set.stage(las)?;
+    staged.config.output.las = set.stage(las)?.into();
     let staged_report = set.stage(&report_path)?;
-    staged.config.output.report = Some(staged_report.clone());
+    staged.config.output.report = Some(staged_report.clone().into());
     let result = stages(&staged).and_then(|mut report| {
         report.parameters = c.clone();
         for o in &mut report.outputs {

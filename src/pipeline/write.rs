@@ -61,7 +61,7 @@ impl SinkSettings {
         };
         Ok(SinkSettings {
             config,
-            las: c.output.las.clone(),
+            las: c.output.las.to_path_buf(),
             stem: c.output.stem(),
             split: c.output.split,
             max_points: c.output.max_points_per_file.unwrap_or(u64::MAX),

@@ -111,8 +111,7 @@ pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Resu
     )?;
     if let Some(d) = opts.duration_s {
         sc.duration_s = d;
-        let text = toml::to_string(&sc).map_err(|e| Error::Invalid(e.to_string()))?;
-        sc = Scenario::parse(&text, "--duration")?;
+        sc.validate("--duration")?;
     }
     simulate_scenario(&sc, out_dir, opts)
 }

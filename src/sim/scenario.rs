@@ -5,7 +5,8 @@
 
 use super::checker::Checker;
 use super::effects::Effects;
-use crate::{Error, Result};
+use crate::io::config_file;
+use crate::Result;
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -372,18 +373,20 @@ impl Default for OutputCfg {
 impl Scenario {
     /// Reads and validates a scenario file.
     pub fn load(path: &Path) -> Result<Scenario> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        Scenario::parse(&text, &path.display().to_string())
+        let parsed = config_file::load::<Scenario>(path, &[])?;
+        parsed.value.validate(&parsed.source)?;
+        Ok(parsed.value)
     }
 
     /// Parses and validates scenario text; `source` names it in errors.
     pub fn parse(text: &str, source: &str) -> Result<Scenario> {
-        let sc: Scenario = toml::from_str(text).map_err(|e| toml_error(source, e))?;
+        let sc: Scenario = config_file::parse(text, source, Path::new("."), &[])?.value;
         sc.validate(source)?;
         Ok(sc)
     }
 
-    fn validate(&self, src: &str) -> Result<()> {
+    /// Checks every value's range; `src` names the scenario in errors.
+    pub(crate) fn validate(&self, src: &str) -> Result<()> {
         let mut c = Checker::new(src);
         c.pos("duration_s", self.duration_s);
         c.range("start_time_s", self.start_time_s, 0.0, 604_800.0);
@@ -624,33 +627,4 @@ impl NavErrorCfg {
             },
         );
     }
-}
-
-/// Maps a TOML/serde error to [`Error::Config`] naming the dotted key.
-fn toml_error(source: &str, mut e: toml::de::Error) -> Error {
-    let message = e.message().to_string();
-    e.set_input(None);
-    let shown = e.to_string();
-    let mut key = shown
-        .lines()
-        .find_map(|l| l.strip_prefix("in `").and_then(|k| k.strip_suffix('`')))
-        .unwrap_or("")
-        .to_string();
-    let field = |prefix: &str| {
-        message
-            .strip_prefix(prefix)
-            .and_then(|r| r.split('`').next())
-            .map(str::to_string)
-    };
-    if let Some(f) = field("unknown field `").or_else(|| field("missing field `")) {
-        key = if key.is_empty() {
-            f
-        } else {
-            format!("{key}.{f}")
-        };
-    }
-    if key.is_empty() {
-        key = "(document)".into();
-    }
-    Error::config(source, key, message)
 }

@@ -2,10 +2,10 @@
 //! calibration commands' library entry points run on them.
 
 use kinescan::calib::boresight::{run_boresight_calibration, BoresightConfig};
-use kinescan::calib::files::load_toml;
 use kinescan::calib::latency::{run_latency_calibration, LatencyConfig};
 use kinescan::calib::sim_table::run_table_simulation;
 use kinescan::calib::sim_tripod::run_tripod_simulation;
+use kinescan::io::config_file;
 use std::path::{Path, PathBuf};
 
 fn pipeline(name: &str) -> PathBuf {
@@ -115,9 +115,13 @@ fn boresight_scenario_to_calibration() {
 
 #[test]
 fn shipped_configs_parse() {
-    let l: LatencyConfig = load_toml(&pipeline("calib_latency.toml")).unwrap();
+    let l: LatencyConfig = config_file::load(&pipeline("calib_latency.toml"), &[])
+        .unwrap()
+        .value;
     l.setup("calib_latency.toml").unwrap();
-    let b: BoresightConfig = load_toml(&pipeline("calib_boresight.toml")).unwrap();
+    let b: BoresightConfig = config_file::load(&pipeline("calib_boresight.toml"), &[])
+        .unwrap()
+        .value;
     b.setup("calib_boresight.toml").unwrap();
 }
 

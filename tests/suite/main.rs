@@ -11,6 +11,7 @@ mod calib_latency;
 mod calib_sphere;
 mod calib_tripod_scans;
 mod cli;
+mod config_files;
 mod diagnose;
 mod diagnose_acceptance;
 mod epsg_frames;

@@ -1,8 +1,8 @@
 //! Every file in `pipelines/` is exercised here, and the built-in demo runs end to end.
 
 use kinescan::calib::boresight::BoresightConfig;
-use kinescan::calib::files::load_toml;
 use kinescan::calib::latency::LatencyConfig;
+use kinescan::io::config_file;
 use kinescan::pipeline::RunOptions;
 use kinescan::sim::{Scenario, SimOptions};
 use std::path::{Path, PathBuf};
@@ -55,8 +55,8 @@ fn scenarios_load() {
 
 #[test]
 fn calibration_templates_load() {
-    load_toml::<LatencyConfig>(&pipelines().join("calib_latency.toml")).unwrap();
-    load_toml::<BoresightConfig>(&pipelines().join("calib_boresight.toml")).unwrap();
+    config_file::load::<LatencyConfig>(&pipelines().join("calib_latency.toml"), &[]).unwrap();
+    config_file::load::<BoresightConfig>(&pipelines().join("calib_boresight.toml"), &[]).unwrap();
 }
 
 #[test]

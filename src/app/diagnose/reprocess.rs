@@ -4,10 +4,11 @@
 
 use super::model::Effect;
 use crate::io::atomic::write_atomic;
+use crate::io::config_file;
 use crate::pipeline::config::{self, LoadedPipeline, PipelineConfig, TimeModel};
 use crate::{Error, Result};
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// File name of the corrected pipeline in the diagnosis folder.
 pub const CORRECTED_PIPELINE: &str = "corrected.toml";
@@ -104,7 +105,7 @@ pub fn set_lines(c: &PipelineConfig, estimates: &[(Effect, f64)]) -> Result<Vec<
 pub fn corrected(p: &LoadedPipeline, set: &[String], out_dir: &Path) -> Result<LoadedPipeline> {
     let overrides: Vec<String> = p.overrides.iter().chain(set).cloned().collect();
     let mut loaded = config::load(&p.path, &overrides)?;
-    loaded.config.output.las = out_dir.join(CORRECTED_LAS);
+    loaded.config.output.las = out_dir.join(CORRECTED_LAS).into();
     loaded.config.output.report = None;
     Ok(loaded)
 }
@@ -117,30 +118,10 @@ pub fn write_pipeline(
     set: &[String],
     path: &Path,
 ) -> Result<()> {
-    let mut c = c.clone();
-    let abs = |p: &mut PathBuf| -> Result<()> {
-        *p = std::path::absolute(&*p).map_err(|e| Error::io(&*p, e))?;
-        Ok(())
-    };
-    abs(&mut c.inputs.sbet)?;
-    if let Some(s) = c.inputs.smrmsg.as_mut() {
-        abs(s)?;
-    }
-    for p in c.inputs.profiles.iter_mut() {
-        abs(p)?;
-    }
-    abs(&mut c.output.las)?;
-    if let Some(sy) = c.sync.as_mut() {
-        abs(&mut sy.points)?;
-        if let Some(t) = sy.targets.as_mut() {
-            abs(t)?;
-        }
-    }
-    if let Some(d) = c.diagnose.as_mut() {
-        for p in d.patches.iter_mut().chain(d.out.iter_mut()) {
-            abs(p)?;
-        }
-    }
+    let body = toml::to_string(c).map_err(|e| Error::Invalid(format!("pipeline TOML: {e}")))?;
+    // Re-read with relative paths resolved against the working directory: every path absolute.
+    let cwd = std::path::absolute(".").map_err(|e| Error::io(".", e))?;
+    let c: PipelineConfig = config_file::parse(&body, "corrected pipeline", &cwd, &[])?.value;
     let body = toml::to_string(&c).map_err(|e| Error::Invalid(format!("pipeline TOML: {e}")))?;
     let mut text = format!(
         "# Written by `kinescan diagnose`: {} with the diagnosed correction added\n",
@@ -219,6 +200,6 @@ las = "out/x.las"
         write_pipeline(&c.config, &p.path, &lines, &path).unwrap();
         let again = config::load(&path, &[]).unwrap();
         assert_eq!(again.config, c.config);
-        assert_eq!(again.config.output.las, out.join(CORRECTED_LAS));
+        assert_eq!(again.config.output.las.as_path(), out.join(CORRECTED_LAS));
     }
 }

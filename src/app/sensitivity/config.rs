@@ -1,12 +1,13 @@
 //! The sensitivity study file (TOML, unknown keys refused): the sigma set, the INS and timing
 //! sigmas, and either flat-ground points or a simulated scenario.
 
+use crate::io::config_file::{self, ConfigPath};
 use crate::pipeline::config::UncertaintyConfig;
 use crate::uncertainty::UncertaintyInputs;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Vector3};
 use serde::{Deserialize, Serialize};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Which sigma set: paper 003 Table 1 "expected" or "ideal", or `[custom]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -67,8 +68,8 @@ pub struct SensitivityConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ScenarioPointsConfig {
-    /// Scenario file, relative to the study file (made absolute when loaded).
-    pub file: PathBuf,
+    /// Scenario file, relative to the study file.
+    pub file: ConfigPath,
     /// Simulated duration (s), replacing the scenario's `duration_s`.
     #[serde(default)]
     pub duration_s: Option<f64>,
@@ -179,19 +180,10 @@ impl SigmaSet {
 
 /// Reads a study file (TOML).
 pub fn load_sensitivity(path: &Path) -> Result<SensitivityConfig> {
-    let name = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    let de = toml::Deserializer::parse(&text)
-        .map_err(|e| Error::config(&name, "(syntax)", e.to_string()))?;
-    let c: SensitivityConfig = serde_path_to_error::deserialize(de)
-        .map_err(|e| Error::config(&name, e.path().to_string(), e.inner().message()))?;
-    let mut c = c;
-    validate(&c).map_err(|(key, problem)| Error::config(&name, key, problem))?;
-    if let Some(sc) = c.scenario.as_mut() {
-        let dir = path.parent().unwrap_or(Path::new("."));
-        sc.file = dir.join(&sc.file);
-    }
-    Ok(c)
+    let parsed = config_file::load::<SensitivityConfig>(path, &[])?;
+    validate(&parsed.value)
+        .map_err(|(key, problem)| Error::config(&parsed.source, key, problem))?;
+    Ok(parsed.value)
 }
 
 fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, String)> {

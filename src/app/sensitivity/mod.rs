@@ -104,7 +104,7 @@ pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<Sensitivity
     let config = load_sensitivity(config_path)?;
     let mut inputs = vec![("config file".to_string(), config_path.to_path_buf())];
     if let Some(sc) = &config.scenario {
-        inputs.push(("scenario.file".into(), sc.file.clone()));
+        inputs.push(("scenario.file".into(), sc.file.to_path_buf()));
     }
     let mut names = vec![
         "sensitivity_points.csv".to_string(),
