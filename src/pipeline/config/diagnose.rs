@@ -1,0 +1,120 @@
+//! `[diagnose]`: the options of `kinescan diagnose` (docs/diagnosis.md).
+
+use super::Refusal;
+use crate::io::config_file::ConfigPath;
+use serde::{Deserialize, Serialize};
+
+/// `[diagnose]`: what `kinescan diagnose` reads and how it turns returns on reference patches
+/// into observations (docs/diagnosis.md).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DiagnoseConfig {
+    /// Reference planar patches (patch CSV).
+    #[serde(default)]
+    pub patches: Option<ConfigPath>,
+    /// Output folder of the diagnosis.
+    #[serde(default)]
+    pub out: Option<ConfigPath>,
+    /// A return further than this from its patch plane is not an observation (m).
+    #[serde(default = "default_plane_tolerance_m")]
+    pub plane_tolerance_m: f64,
+    /// Returns closer than this to a patch edge are left out (m).
+    #[serde(default = "default_edge_margin_m")]
+    pub edge_margin_m: f64,
+    /// A gap longer than this between two returns on one patch starts a new visit (s).
+    #[serde(default = "default_visit_gap_s")]
+    pub visit_gap_s: f64,
+    /// A visit longer than this is split (s): one visit shares one navigation error.
+    #[serde(default = "default_max_visit_s")]
+    pub max_visit_s: f64,
+    /// Correlation time of the INS position errors (s): their drift within a visit is added
+    /// to each return's independent variance.
+    #[serde(default = "default_nav_position_tau_s")]
+    pub nav_position_tau_s: f64,
+    /// Correlation time of the INS attitude errors (s).
+    #[serde(default = "default_nav_attitude_tau_s")]
+    pub nav_attitude_tau_s: f64,
+    /// Visits with fewer returns are left out.
+    #[serde(default = "default_min_per_visit")]
+    pub min_per_visit: usize,
+    /// At most this many returns of a visit are kept, evenly spaced in time.
+    #[serde(default = "default_max_per_visit")]
+    pub max_per_visit: usize,
+    /// Seed of the split of the references into fit and held-out halves.
+    #[serde(default = "default_diagnose_seed")]
+    pub seed: u64,
+    /// Family-wise significance level of the effect tests (Holm).
+    #[serde(default = "default_diagnose_alpha")]
+    pub alpha: f64,
+}
+
+impl Default for DiagnoseConfig {
+    fn default() -> Self {
+        toml::from_str("").expect("every key has a default")
+    }
+}
+
+fn default_plane_tolerance_m() -> f64 {
+    0.15
+}
+fn default_edge_margin_m() -> f64 {
+    0.1
+}
+fn default_visit_gap_s() -> f64 {
+    1.0
+}
+fn default_max_visit_s() -> f64 {
+    5.0
+}
+fn default_nav_position_tau_s() -> f64 {
+    60.0
+}
+fn default_nav_attitude_tau_s() -> f64 {
+    30.0
+}
+fn default_min_per_visit() -> usize {
+    20
+}
+fn default_max_per_visit() -> usize {
+    400
+}
+fn default_diagnose_seed() -> u64 {
+    1
+}
+fn default_diagnose_alpha() -> f64 {
+    0.01
+}
+
+impl DiagnoseConfig {
+    /// Checks tolerances, correlation times and visit sizes.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        let positive = [
+            ("diagnose.plane_tolerance_m", self.plane_tolerance_m),
+            ("diagnose.visit_gap_s", self.visit_gap_s),
+            ("diagnose.max_visit_s", self.max_visit_s),
+            ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
+            ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
+        ];
+        for (key, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err((key, format!("must be a finite number > 0, got {v}")));
+            }
+        }
+        if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
+            let v = self.edge_margin_m;
+            return Err(("diagnose.edge_margin_m", format!("must be >= 0, got {v}")));
+        }
+        if self.min_per_visit < 2 || self.max_per_visit < self.min_per_visit {
+            let problem = format!(
+                "need 2 <= min_per_visit <= max_per_visit, got {} and {}",
+                self.min_per_visit, self.max_per_visit
+            );
+            return Err(("diagnose.max_per_visit", problem));
+        }
+        if !(self.alpha > 0.0 && self.alpha < 0.5) {
+            let v = self.alpha;
+            return Err(("diagnose.alpha", format!("must be in (0, 0.5), got {v}")));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,91 @@
+//! `[inputs]` (what is read) and `[trajectory]` (how the trajectory is interpolated).
+
+use super::Refusal;
+use crate::io::config_file::ConfigPath;
+use serde::{Deserialize, Serialize};
+
+/// `[inputs]`: what is read.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputsConfig {
+    /// Applanix SBET trajectory.
+    pub sbet: ConfigPath,
+    /// Applanix SMRMSG accuracy file (needed for uncertainty).
+    #[serde(default)]
+    pub smrmsg: Option<ConfigPath>,
+    /// Scanner profile files, one per pass (binary `.ksprof` or CSV `.csv`). Pass `k` (from 0)
+    /// gets point source id `first_point_source_id + k`.
+    pub profiles: Vec<ConfigPath>,
+    /// Point source id of the first profile file.
+    #[serde(default = "one_u16")]
+    pub first_point_source_id: u16,
+    /// GPS week of the trajectory's seconds-of-week times. When given, LAS GPS time is
+    /// adjusted standard GPS time; when absent, GPS week seconds (conventions §2).
+    #[serde(default)]
+    pub gps_week: Option<u32>,
+}
+
+/// `[trajectory]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrajectoryConfig {
+    /// Longest interval between trajectory records that may be interpolated across (s).
+    #[serde(default = "default_max_gap_s")]
+    pub max_gap_s: f64,
+    /// Added to the SBET true heading (deg, clockwise from north; docs/conventions.md §3).
+    #[serde(default)]
+    pub heading_offset_deg: f64,
+}
+
+impl Default for TrajectoryConfig {
+    fn default() -> Self {
+        TrajectoryConfig {
+            max_gap_s: default_max_gap_s(),
+            heading_offset_deg: 0.0,
+        }
+    }
+}
+
+impl TrajectoryConfig {
+    /// The trajectory options (angles converted to radians).
+    pub fn options(&self) -> crate::trajectory::TrajectoryOptions {
+        crate::trajectory::TrajectoryOptions {
+            max_gap_s: self.max_gap_s,
+            heading_offset_rad: self.heading_offset_deg.to_radians(),
+        }
+    }
+}
+
+impl InputsConfig {
+    /// Checks that there is a profile file.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        if self.profiles.is_empty() {
+            let problem = "at least one profile file is required";
+            return Err(("inputs.profiles", problem.into()));
+        }
+        Ok(())
+    }
+}
+
+impl TrajectoryConfig {
+    /// Checks the gap limit and the heading offset.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        if !(self.max_gap_s.is_finite() && self.max_gap_s > 0.0) {
+            let v = self.max_gap_s;
+            return Err(("trajectory.max_gap_s", format!("must be > 0, got {v}")));
+        }
+        if !self.heading_offset_deg.is_finite() {
+            let v = self.heading_offset_deg;
+            let problem = format!("must be a finite number, got {v}");
+            return Err(("trajectory.heading_offset_deg", problem));
+        }
+        Ok(())
+    }
+}
+
+fn one_u16() -> u16 {
+    1
+}
+fn default_max_gap_s() -> f64 {
+    crate::trajectory::TrajectoryOptions::default().max_gap_s
+}

@@ -1,0 +1,124 @@
+//! Pipeline files (TOML): every stage's options, declared in one place.
+//!
+//! A pipeline file has one table per stage, in the order the data flows: `[inputs]` (read),
+//! `[trajectory]`, `[sensor]`, `[time]` (scanner clock), `[latency]`, `[uncertainty]`
+//! (optional per-point sigmas), `[output]` (georeference and write). Unknown keys are refused,
+//! naming the key and the file (`io::config_file`). Paths are `ConfigPath`s: relative ones are
+//! resolved against the pipeline file's folder when it is loaded.
+//! Angles are given in degrees (keys ending `_deg`) and converted once, here.
+//! docs/pipeline.md documents every option.
+//!
+//! One module per concept: `inputs` (`[inputs]`, `[trajectory]`), `sensor` (`[sensor]`,
+//! `[time]`, `[latency]`), `output`, `uncertainty`, `sync`, `diagnose`; each checks its own
+//! values, [`load`] checks what spans tables.
+
+mod diagnose;
+mod inputs;
+mod output;
+mod sensor;
+mod sync;
+mod uncertainty;
+
+pub use diagnose::DiagnoseConfig;
+pub use inputs::{InputsConfig, TrajectoryConfig};
+pub use output::{FrameConfig, OutputConfig, SplitMode, Strictness};
+pub use sensor::{LatencyConfig, SensorConfig, TimeConfig, MIN_PERIOD_S};
+pub use sync::SyncConfig;
+pub use uncertainty::UncertaintyConfig;
+
+use crate::io::config_file;
+pub use crate::timing::TimeModel;
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A refused value: its dotted key and what is wrong.
+pub type Refusal = (&'static str, String);
+
+/// A whole pipeline definition.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PipelineConfig {
+    /// Input files.
+    pub inputs: InputsConfig,
+    /// Trajectory handling.
+    #[serde(default)]
+    pub trajectory: TrajectoryConfig,
+    /// Scanner mounting and intrinsics.
+    pub sensor: SensorConfig,
+    /// Scanner time model.
+    pub time: TimeConfig,
+    /// IMU-to-scanner latencies.
+    #[serde(default)]
+    pub latency: LatencyConfig,
+    /// Output LAS and report.
+    pub output: OutputConfig,
+    /// Per-point uncertainty (optional; needs `inputs.smrmsg`).
+    #[serde(default)]
+    pub uncertainty: Option<UncertaintyConfig>,
+    /// Object-space time synchronisation (optional; runs before georeferencing).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sync: Option<SyncConfig>,
+    /// `kinescan diagnose` options (optional; command-line options win).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub diagnose: Option<DiagnoseConfig>,
+}
+
+/// A pipeline file loaded with its overrides applied and paths resolved.
+#[derive(Debug, Clone)]
+pub struct LoadedPipeline {
+    /// Pipeline file.
+    pub path: PathBuf,
+    /// The configuration, every path absolute (resolved against the pipeline file's folder).
+    pub config: PipelineConfig,
+    /// `--set` overrides applied, as given.
+    pub overrides: Vec<String>,
+}
+
+/// Reads `path`, applies `KEY=VALUE` overrides (`io::config_file`), validates and resolves
+/// relative paths against the file's folder.
+pub fn load(path: &Path, overrides: &[String]) -> Result<LoadedPipeline> {
+    let parsed = config_file::load::<PipelineConfig>(path, overrides)?;
+    validate(&parsed.value, &parsed.source)?;
+    Ok(LoadedPipeline {
+        path: path.to_path_buf(),
+        config: parsed.value,
+        overrides: overrides.to_vec(),
+    })
+}
+
+/// Each table's own checks, then what spans tables.
+fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
+    check(c).map_err(|(key, problem)| Error::config(source, key, problem))
+}
+
+fn check(c: &PipelineConfig) -> std::result::Result<(), Refusal> {
+    c.inputs.check()?;
+    c.trajectory.check()?;
+    c.sensor.check()?;
+    c.time.check()?;
+    if let Some(sy) = &c.sync {
+        sy.check(&c.time)?;
+    }
+    if let Some(d) = &c.diagnose {
+        d.check()?;
+    }
+    let t = &c.time;
+    if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) && c.sync.is_none() {
+        let problem = "the software time model needs t0_s (or a sync stage)";
+        return Err(("time.t0_s", problem.into()));
+    }
+    c.latency.check()?;
+    if let Some(u) = &c.uncertainty {
+        u.check()?;
+        if c.inputs.smrmsg.is_none() {
+            let problem = "[uncertainty] needs the SMRMSG file (INS position and attitude sigmas)";
+            return Err(("inputs.smrmsg", problem.into()));
+        }
+    }
+    c.output.check()
+}
+
+fn yes() -> bool {
+    true
+}

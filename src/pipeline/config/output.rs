@@ -1,0 +1,188 @@
+//! `[output]`: the map frame, the LAS file(s) and what they hold.
+
+use super::Refusal;
+use crate::geo::ellipsoid::Geodetic;
+use crate::geo::epsg::EpsgCrs;
+use crate::io::config_file::ConfigPath;
+use serde::{Deserialize, Serialize};
+/// Output mapping frame.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
+pub enum FrameConfig {
+    /// UTM with ellipsoidal height; zone from the trajectory's first record unless given.
+    Utm {
+        /// Zone 1-60 (automatic when absent).
+        #[serde(default)]
+        zone: Option<u8>,
+        /// Northern hemisphere (automatic when absent).
+        #[serde(default)]
+        north: Option<bool>,
+    },
+    /// Earth-centred, Earth-fixed WGS84.
+    Ecef,
+    /// Local East-North-Up about an origin (degrees, metres).
+    Enu {
+        /// Origin latitude (deg).
+        lat_deg: f64,
+        /// Origin longitude (deg).
+        lon_deg: f64,
+        /// Origin ellipsoidal height (m).
+        h_m: f64,
+    },
+    /// A projected CRS by EPSG code (WGS84 or a datum with a stated Helmert to it), with
+    /// WGS84 ellipsoidal height; see `geo::epsg`.
+    Epsg {
+        /// EPSG code, e.g. 2154 (RGF93 v1 / Lambert-93).
+        code: u32,
+    },
+}
+
+impl FrameConfig {
+    /// Origin of a local frame as geodetic radians.
+    pub fn enu_origin(&self) -> Option<Geodetic> {
+        match *self {
+            FrameConfig::Enu {
+                lat_deg,
+                lon_deg,
+                h_m,
+            } => Some(Geodetic {
+                lat_rad: lat_deg.to_radians(),
+                lon_rad: lon_deg.to_radians(),
+                h_m,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// How the output is split into files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SplitMode {
+    /// One LAS file: `path`.
+    None,
+    /// One file per profile file: `<stem>_<profile file stem>.las`.
+    PerInput,
+    /// At most `max_points_per_file` points each: `<stem>_0001.las`, `<stem>_0002.las`, ...
+    MaxPoints,
+}
+
+/// What happens to a return that cannot be georeferenced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Strictness {
+    /// Count it as rejected with its reason and go on.
+    Count,
+    /// Stop with an error naming the file and record.
+    Fail,
+}
+
+/// `[output]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputConfig {
+    /// Output LAS path (the base name when split).
+    pub las: ConfigPath,
+    /// Run report path (JSON); default: `<las stem>.report.json` beside the LAS.
+    #[serde(default)]
+    pub report: Option<ConfigPath>,
+    /// Mapping frame.
+    #[serde(default = "default_frame")]
+    pub frame: FrameConfig,
+    /// Coordinate scale (m per integer step); the quantisation error is half of it.
+    #[serde(default = "default_scale_m")]
+    pub scale_m: f64,
+    /// LAS coordinate offset X, Y, Z in the map frame (m); default: the map coordinates of the
+    /// first trajectory record rounded to 1 km. Points must lie within `2^31 * scale_m` of it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub offset_m: Option<[f64; 3]>,
+    /// Accept a run that writes no point (default: such a run fails and keeps the old output).
+    #[serde(default)]
+    pub allow_empty: bool,
+    /// File splitting.
+    #[serde(default = "default_split")]
+    pub split: SplitMode,
+    /// Maximum points per file with `split = "max_points"`.
+    #[serde(default)]
+    pub max_points_per_file: Option<u64>,
+    /// Per-return problems: counted (`count`) or fatal (`fail`).
+    #[serde(default = "default_strictness")]
+    pub strictness: Strictness,
+    /// Write the measured range (m) as an extra dimension `range`.
+    #[serde(default = "super::yes")]
+    pub range_dimension: bool,
+    /// Write each point's 0-based record index in its profile file as the extra dimension
+    /// `return_index` (float64, exact to 2^53), to trace a point back to its raw return.
+    #[serde(default)]
+    pub return_index_dimension: bool,
+}
+
+impl OutputConfig {
+    /// Checks the scale, offset, split and frame.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        if !(self.scale_m > 0.0 && self.scale_m <= 1e-3) {
+            let v = self.scale_m;
+            let problem = format!("must be in (0, 0.001] m (quantisation <= 0.5 mm), got {v}");
+            return Err(("output.scale_m", problem));
+        }
+        if let Some(v) = self.offset_m.filter(|v| !v.iter().all(|x| x.is_finite())) {
+            let problem = format!("must be three finite numbers, got {v:?}");
+            return Err(("output.offset_m", problem));
+        }
+        if self.split == SplitMode::MaxPoints && self.max_points_per_file.is_none_or(|n| n == 0) {
+            let problem = "split = \"max_points\" needs max_points_per_file > 0";
+            return Err(("output.max_points_per_file", problem.into()));
+        }
+        self.frame.check()
+    }
+}
+
+impl FrameConfig {
+    /// Checks the zone, the local origin or the EPSG code.
+    fn check(&self) -> Result<(), Refusal> {
+        match *self {
+            FrameConfig::Utm { zone: Some(z), .. } if !(1..=60).contains(&z) => Err((
+                "output.frame.zone",
+                format!("UTM zone must be 1..60, got {z}"),
+            )),
+            FrameConfig::Enu {
+                lat_deg,
+                lon_deg,
+                h_m,
+            } => {
+                if !(-90.0..=90.0).contains(&lat_deg) {
+                    let problem = format!("must be in [-90, 90] deg, got {lat_deg}");
+                    return Err(("output.frame.lat_deg", problem));
+                }
+                if !(-180.0..=180.0).contains(&lon_deg) {
+                    let problem = format!("must be in [-180, 180] deg, got {lon_deg}");
+                    return Err(("output.frame.lon_deg", problem));
+                }
+                if !h_m.is_finite() {
+                    return Err(("output.frame.h_m", format!("must be finite, got {h_m}")));
+                }
+                Ok(())
+            }
+            FrameConfig::Epsg { code } => EpsgCrs::get(code)
+                .map(drop)
+                .map_err(|why| ("output.frame.code", why)),
+            _ => Ok(()),
+        }
+    }
+}
+
+fn default_frame() -> FrameConfig {
+    FrameConfig::Utm {
+        zone: None,
+        north: None,
+    }
+}
+fn default_scale_m() -> f64 {
+    1e-4
+}
+fn default_split() -> SplitMode {
+    SplitMode::None
+}
+fn default_strictness() -> Strictness {
+    Strictness::Count
+}

@@ -1,0 +1,166 @@
+//! The scanner: `[sensor]` (mounting, intrinsics, range limits), `[time]` (its clock) and
+//! `[latency]` (IMU-to-scanner latencies).
+
+use super::Refusal;
+use crate::timing::{MirrorDirection, TimeModel};
+use serde::{Deserialize, Serialize};
+
+/// `[sensor]`: lever arm, boresight, scanner intrinsics and range limits.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SensorConfig {
+    /// Scanner optical centre relative to the IMU origin in the body frame (m).
+    pub lever_arm_b_m: [f64; 3],
+    /// Boresight angles (bx, by, bz) (deg): `R_s^b = Rz(bz) Ry(by) Rx(bx)`.
+    #[serde(default)]
+    pub boresight_deg: [f64; 3],
+    /// Out-of-plane beam angle alpha0 (deg), used when a profile file has no alpha column.
+    #[serde(default)]
+    pub alpha0_deg: f64,
+    /// Range zero error K (m), added to every range.
+    #[serde(default)]
+    pub range_zero_m: f64,
+    /// Range scale error S (ppm): `x_s = (1 + S 1e-6) (rho + K) u_s` (docs/conventions.md §3).
+    #[serde(default)]
+    pub range_scale_ppm: f64,
+    /// Encoder offset dbeta (deg), added to the recorded mirror angle everywhere it is used:
+    /// the beam direction and the time model's `f(beta)` (docs/conventions.md §2-3).
+    #[serde(default)]
+    pub encoder_offset_deg: f64,
+    /// Returns closer than this are rejected (m).
+    #[serde(default = "default_min_range_m")]
+    pub min_range_m: f64,
+    /// Returns further than this are rejected (m).
+    #[serde(default = "default_max_range_m")]
+    pub max_range_m: f64,
+}
+
+impl SensorConfig {
+    /// The georeferencing sensor (angles converted to radians).
+    pub fn sensor(&self) -> crate::georef::Sensor {
+        crate::georef::Sensor::new(
+            nalgebra::Vector3::from(self.lever_arm_b_m),
+            nalgebra::Vector3::from(self.boresight_deg.map(f64::to_radians)),
+            self.alpha0_deg.to_radians(),
+            self.range_zero_m,
+        )
+        .with_range_scale_ppm(self.range_scale_ppm)
+        .with_encoder_offset_rad(self.encoder_offset_deg.to_radians())
+    }
+}
+
+/// `[time]`: the scanner clock.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeConfig {
+    /// Which time model.
+    #[serde(default = "default_time_model")]
+    pub model: TimeModel,
+    /// GPS time of the start of profile 0 (s); required by the software model.
+    #[serde(default)]
+    pub t0_s: Option<f64>,
+    /// Mirror period T (s).
+    pub period_s: f64,
+    /// Mirror angle at which the profile counter increments (deg).
+    #[serde(default)]
+    pub beta_start_deg: f64,
+    /// Sense of mirror rotation.
+    #[serde(default = "default_direction")]
+    pub direction: MirrorDirection,
+}
+
+impl TimeConfig {
+    /// The mirror geometry (radians) for RECORDED mirror angles, with the encoder offset
+    /// dbeta (deg, `sensor.encoder_offset_deg`) applied: `f(beta + dbeta)` is the fraction of
+    /// the recorded `beta` with the profile start moved to `beta_start - dbeta`.
+    pub fn mirror(&self, encoder_offset_deg: f64) -> crate::timing::Mirror {
+        crate::timing::Mirror {
+            beta_start_rad: (self.beta_start_deg - encoder_offset_deg).to_radians(),
+            direction: self.direction,
+        }
+    }
+}
+
+/// `[latency]` (conventions §2 signs).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LatencyConfig {
+    /// Attitude latency tau (s): attitude is evaluated at `t + tau`.
+    #[serde(default)]
+    pub attitude_s: f64,
+    /// Position latency (s): position is evaluated at `t + position_s`.
+    #[serde(default)]
+    pub position_s: f64,
+}
+
+/// Shortest mirror period accepted (s): a 10 kHz mirror, far beyond any profile scanner;
+/// anything shorter is a typing error (and would make profile times meaningless).
+pub const MIN_PERIOD_S: f64 = 1e-4;
+
+impl SensorConfig {
+    /// Checks that every value is finite and the range limits ordered.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        let all_finite = self
+            .lever_arm_b_m
+            .iter()
+            .chain(&self.boresight_deg)
+            .chain(&[self.alpha0_deg, self.range_zero_m])
+            .all(|v| v.is_finite());
+        if !all_finite {
+            let problem = "lever arm, boresight, alpha0 and range zero must be finite";
+            return Err(("sensor", problem.into()));
+        }
+        let (min, max) = (self.min_range_m, self.max_range_m);
+        if !(min >= 0.0 && max > min && max.is_finite()) {
+            let problem = format!("need 0 <= min_range_m < max_range_m, got {min} and {max}");
+            return Err(("sensor.max_range_m", problem));
+        }
+        for (key, v) in [
+            ("sensor.range_scale_ppm", self.range_scale_ppm),
+            ("sensor.encoder_offset_deg", self.encoder_offset_deg),
+        ] {
+            if !v.is_finite() {
+                return Err((key, format!("must be a finite number, got {v}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl TimeConfig {
+    /// Checks the period and t0 (the software model's need of t0 is checked with `[sync]`).
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        if !(MIN_PERIOD_S..=1.0).contains(&self.period_s) {
+            let problem = format!("must be in [{MIN_PERIOD_S}, 1] s, got {:?}", self.period_s);
+            return Err(("time.period_s", problem));
+        }
+        if let Some(t0) = self.t0_s.filter(|v| !v.is_finite()) {
+            return Err(("time.t0_s", format!("must be a finite number, got {t0}")));
+        }
+        Ok(())
+    }
+}
+
+impl LatencyConfig {
+    /// Checks both latencies are finite and below 1 s in magnitude.
+    pub(super) fn check(&self) -> Result<(), Refusal> {
+        if !(self.attitude_s.abs() < 1.0 && self.position_s.abs() < 1.0) {
+            let problem = "latencies must be finite and below 1 s in magnitude";
+            return Err(("latency", problem.into()));
+        }
+        Ok(())
+    }
+}
+
+fn default_min_range_m() -> f64 {
+    0.5
+}
+fn default_max_range_m() -> f64 {
+    1000.0
+}
+fn default_time_model() -> TimeModel {
+    TimeModel::Software
+}
+fn default_direction() -> MirrorDirection {
+    MirrorDirection::Increasing
+}
