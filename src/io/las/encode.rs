@@ -1,0 +1,236 @@
+//! Point records: [`encode_points`] turns a chunk of [`LasPoint`]s into record bytes and
+//! [`ChunkStats`] (pure, allocation-free per point, safe to run on many threads at once).
+
+use super::{ExtraType, PointLayout, FRACTION_SCALE, MAX_EXTRA_DIMS, SCAN_ANGLE_UNIT_DEG};
+use crate::{Error, Result};
+
+const NUMBER_OF_RETURNS_MAX: u8 = 15;
+const SCAN_ANGLE_MAX_COUNTS: f64 = 30_000.0;
+
+/// One output point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LasPoint {
+    /// Map-frame X (m), the file's X axis (e.g. UTM easting).
+    pub x: f64,
+    /// Map-frame Y (m), the file's Y axis (e.g. UTM northing).
+    pub y: f64,
+    /// Map-frame Z (m), the file's Z axis (e.g. ellipsoidal height).
+    pub z: f64,
+    /// Return intensity, scanner units.
+    pub intensity: u16,
+    /// Return number, 1..=15.
+    pub return_number: u8,
+    /// Number of returns of the pulse, 1..=15.
+    pub number_of_returns: u8,
+    /// Scan angle (deg), -180..=180; stored as i16 in 0.006 deg counts.
+    pub scan_angle_deg: f64,
+    /// GPS seconds of the week (conventions §2 trajectory time). The encoder converts to the file's
+    /// convention ([`PointLayout::time`]); never pass adjusted standard time here.
+    pub gps_time: f64,
+    /// Point source ID (e.g. run or scanner number).
+    pub point_source_id: u16,
+    /// ASPRS classification (0 = never classified).
+    pub classification: u8,
+    /// User data byte.
+    pub user_data: u8,
+    /// Values of the layout's extra dimensions, in its order (index i = dimension i), converted
+    /// to the dimension's type; entries past the layout's count are ignored.
+    pub extra: [f64; MAX_EXTRA_DIMS],
+}
+
+impl Default for LasPoint {
+    fn default() -> Self {
+        LasPoint {
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            intensity: 0,
+            return_number: 1,
+            number_of_returns: 1,
+            scan_angle_deg: 0.0,
+            gps_time: 0.0,
+            point_source_id: 0,
+            classification: 0,
+            user_data: 0,
+            extra: [0.0; MAX_EXTRA_DIMS],
+        }
+    }
+}
+
+/// What the header needs from a run of encoded records. Mergeable in any grouping: merging the
+/// stats of consecutive chunks equals the stats of their concatenation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChunkStats {
+    /// Points encoded.
+    pub count: u64,
+    /// Points per return number 1..=15 (index 0 = first return).
+    pub points_by_return: [u64; 15],
+    /// Smallest stored X, Y, Z integer counts (i32::MAX when empty).
+    pub min_counts: [i32; 3],
+    /// Largest stored X, Y, Z integer counts (i32::MIN when empty).
+    pub max_counts: [i32; 3],
+    /// Smallest stored GPS time, file convention (s); +inf when empty.
+    pub gps_time_min: f64,
+    /// Largest stored GPS time, file convention (s); -inf when empty.
+    pub gps_time_max: f64,
+    /// Record length the bytes were encoded with.
+    pub record_len: usize,
+}
+
+impl ChunkStats {
+    /// Stats of no points with records of `record_len` bytes.
+    pub fn empty(record_len: usize) -> Self {
+        ChunkStats {
+            count: 0,
+            points_by_return: [0; 15],
+            min_counts: [i32::MAX; 3],
+            max_counts: [i32::MIN; 3],
+            gps_time_min: f64::INFINITY,
+            gps_time_max: f64::NEG_INFINITY,
+            record_len,
+        }
+    }
+
+    /// Adds `other` (encoded with the same record length) into `self`.
+    pub fn merge(&mut self, other: &ChunkStats) {
+        self.count += other.count;
+        for (a, b) in self.points_by_return.iter_mut().zip(other.points_by_return) {
+            *a += b;
+        }
+        for k in 0..3 {
+            self.min_counts[k] = self.min_counts[k].min(other.min_counts[k]);
+            self.max_counts[k] = self.max_counts[k].max(other.max_counts[k]);
+        }
+        self.gps_time_min = self.gps_time_min.min(other.gps_time_min);
+        self.gps_time_max = self.gps_time_max.max(other.gps_time_max);
+    }
+
+    fn add(&mut self, counts: [i32; 3], return_number: u8, gps_time: f64) {
+        self.count += 1;
+        self.points_by_return[usize::from(return_number) - 1] += 1;
+        for (k, c) in counts.into_iter().enumerate() {
+            self.min_counts[k] = self.min_counts[k].min(c);
+            self.max_counts[k] = self.max_counts[k].max(c);
+        }
+        self.gps_time_min = self.gps_time_min.min(gps_time);
+        self.gps_time_max = self.gps_time_max.max(gps_time);
+    }
+}
+
+/// Stats of records already encoded with `layout` (e.g. part of an encoded chunk split across
+/// two files), read back from the bytes: equal to what [`encode_points`] returned for them.
+pub fn stats_of_records(bytes: &[u8], layout: &PointLayout) -> ChunkStats {
+    let mut stats = ChunkStats::empty(layout.record_len);
+    for rec in bytes.chunks_exact(layout.record_len) {
+        let i32_at = |at: usize| i32::from_le_bytes(rec[at..at + 4].try_into().expect("4 bytes"));
+        let gps_time = f64::from_le_bytes(rec[22..30].try_into().expect("8 bytes"));
+        stats.add([i32_at(0), i32_at(4), i32_at(8)], rec[14] & 0x0f, gps_time);
+    }
+    stats
+}
+
+/// Serialises `points` into format 6 records with the layout's extra bytes.
+///
+/// Appends `points.len() * layout.record_len()` bytes to `out` (what it appended is
+/// unspecified after an error). Coordinates are stored as `round((v - offset) / scale)`;
+/// GPS time as `gps_time + layout.time().shift_s()`; extra values cast to their type.
+/// Pure and allocation-free per point: call it from many threads on separate chunks.
+///
+/// Errors (index = position in `points`): a coordinate that is not finite or whose count does
+/// not fit i32 (says by how much, suggests offset/scale), a return number or number of returns
+/// outside 1..=15, a scan angle outside +-180 deg.
+pub fn encode_points(
+    points: &[LasPoint],
+    layout: &PointLayout,
+    out: &mut Vec<u8>,
+) -> Result<ChunkStats> {
+    let record_len = layout.record_len;
+    let shift_s = layout.time.shift_s();
+    let mut stats = ChunkStats::empty(record_len);
+    let start = out.len();
+    out.resize(start + points.len() * record_len, 0);
+    for (i, (p, rec)) in points
+        .iter()
+        .zip(out[start..].chunks_exact_mut(record_len))
+        .enumerate()
+    {
+        let counts = [
+            quantise(p.x, 0, layout, i)?,
+            quantise(p.y, 1, layout, i)?,
+            quantise(p.z, 2, layout, i)?,
+        ];
+        check_returns(p, i)?;
+        let scan_angle = scan_angle_counts(p.scan_angle_deg, i)?;
+        let gps_time = p.gps_time + shift_s;
+        rec[0..4].copy_from_slice(&counts[0].to_le_bytes());
+        rec[4..8].copy_from_slice(&counts[1].to_le_bytes());
+        rec[8..12].copy_from_slice(&counts[2].to_le_bytes());
+        rec[12..14].copy_from_slice(&p.intensity.to_le_bytes());
+        rec[14] = p.return_number | (p.number_of_returns << 4);
+        rec[15] = 0; // classification flags, scanner channel, scan direction, edge of line
+        rec[16] = p.classification;
+        rec[17] = p.user_data;
+        rec[18..20].copy_from_slice(&scan_angle.to_le_bytes());
+        rec[20..22].copy_from_slice(&p.point_source_id.to_le_bytes());
+        rec[22..30].copy_from_slice(&gps_time.to_le_bytes());
+        for ((dim, &at), &v) in layout
+            .extra_dims
+            .iter()
+            .zip(&layout.extra_offsets)
+            .zip(&p.extra)
+        {
+            match dim.data_type {
+                ExtraType::F32 => rec[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
+                ExtraType::F64 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
+                // Clamped to 0..=1 (NaN is stored as 0).
+                ExtraType::FractionU8 => {
+                    rec[at] = (v.clamp(0.0, 1.0) / FRACTION_SCALE).round() as u8;
+                }
+            }
+        }
+        stats.add(counts, p.return_number, gps_time);
+    }
+    Ok(stats)
+}
+
+fn quantise(v: f64, axis: usize, layout: &PointLayout, index: usize) -> Result<i32> {
+    let (scale, offset) = (layout.scale_m[axis], layout.offset_m[axis]);
+    let counts = ((v - offset) / scale).round();
+    if counts >= f64::from(i32::MIN) && counts <= f64::from(i32::MAX) {
+        return Ok(counts as i32);
+    }
+    let name = ["X", "Y", "Z"][axis];
+    if !v.is_finite() {
+        return Err(Error::Invalid(format!(
+            "LAS point {index} of the chunk: {name} is {v}"
+        )));
+    }
+    let reach_m = f64::from(i32::MAX) * scale;
+    Err(Error::Invalid(format!(
+        "LAS point {index} of the chunk: {name} = {v} m is {:.3} m beyond what LAS can store with \
+         scale {scale} m and offset {offset} m (offset +- {reach_m:.3} m); set the offset near \
+         the data (e.g. the first point rounded) or use a coarser scale",
+        (v - offset).abs() - reach_m
+    )))
+}
+
+fn check_returns(p: &LasPoint, index: usize) -> Result<()> {
+    let ok = |n: u8| (1..=NUMBER_OF_RETURNS_MAX).contains(&n);
+    if ok(p.return_number) && ok(p.number_of_returns) {
+        return Ok(());
+    }
+    Err(Error::Invalid(format!(
+        "LAS point {index} of the chunk: return {} of {} (both must be 1..=15)",
+        p.return_number, p.number_of_returns
+    )))
+}
+
+fn scan_angle_counts(deg: f64, index: usize) -> Result<i16> {
+    let counts = (deg / SCAN_ANGLE_UNIT_DEG).round();
+    if counts.abs() <= SCAN_ANGLE_MAX_COUNTS {
+        return Ok(counts as i16);
+    }
+    Err(Error::Invalid(format!(
+        "LAS point {index} of the chunk: scan angle {deg} deg outside -180..=180 deg"
+    )))
+}

@@ -1,0 +1,185 @@
+//! LAS 1.4 writer (conventions §7): point data record format 6 plus float Extra Bytes, a WKT CRS VLR,
+//! GPS time per conventions §2.
+//!
+//! Two halves so the pipeline can encode in parallel and write in order with memory independent
+//! of file size:
+//! - [`encode_points`] turns a chunk of [`LasPoint`]s into raw record bytes and [`ChunkStats`]
+//!   (pure, allocation-free per point, safe to run on many threads at once);
+//! - [`LasWriter`] appends encoded chunks in order to a temporary file in the destination
+//!   directory, merges their stats, writes the header last, fsyncs and renames atomically.
+//!
+//! The header and VLR framing is serialised with the `las` crate's raw types; point records use
+//! our own encoder for speed. Output bytes depend only on the points and the configuration (no
+//! clock, no randomness), so the same points give the same file however they are chunked.
+//!
+//! Modules: `layout` (extra dimensions, time convention, scale/offset), `encode` (records and
+//! their stats), `header` (header block and VLRs); the writer is here.
+
+mod encode;
+mod header;
+mod layout;
+
+pub use encode::{encode_points, stats_of_records, ChunkStats, LasPoint};
+pub use layout::{ExtraDim, ExtraType, GpsTimeConvention, PointLayout, FRACTION_SCALE};
+
+use crate::io::atomic::AtomicFile;
+use crate::{Error, Result};
+use header::{header_bytes, vlr_bytes, HEADER_SIZE};
+use layout::check_ascii_field;
+use std::path::{Path, PathBuf};
+
+/// Most extra dimensions a [`PointLayout`] can carry (the size of [`LasPoint::extra`]).
+pub const MAX_EXTRA_DIMS: usize = 16;
+/// Point data record format written (LAS 1.4 format 6: core fields and GPS time).
+pub const POINT_FORMAT: u8 = 6;
+/// Bytes of a format 6 record before the extra bytes.
+pub const CORE_RECORD_LEN: usize = 30;
+/// Default coordinate scale (m): quantisation error at most 0.05 mm.
+pub const DEFAULT_SCALE_M: f64 = 1e-4;
+/// Seconds in a GPS week.
+pub const SECONDS_PER_GPS_WEEK: f64 = 604_800.0;
+/// Offset of adjusted standard GPS time: adjusted = standard GPS time - 1e9 s.
+pub const ADJUSTED_GPS_TIME_OFFSET_S: f64 = 1e9;
+/// Format 6 scan angle unit (deg per count).
+pub const SCAN_ANGLE_UNIT_DEG: f64 = 0.006;
+
+const WRITE_BUFFER_BYTES: usize = 1 << 20;
+
+/// File-level settings of a [`LasWriter`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct LasWriterConfig {
+    /// Record layout (scale, offset, time convention, extra dimensions).
+    pub layout: PointLayout,
+    /// CRS of X, Y, Z as OGC WKT (non-empty, no NUL), written null-terminated to the
+    /// `LASF_Projection` record 2112 VLR.
+    pub wkt: String,
+    /// Header system identifier (ASCII, at most 32 bytes), e.g. the scanner model.
+    pub system_identifier: String,
+    /// Header file source ID (e.g. run number; 0 = unassigned).
+    pub file_source_id: u16,
+    /// File creation day of year (1..=366, GMT), from the caller so output is reproducible.
+    pub creation_day_of_year: u16,
+    /// File creation year (four digits), from the caller.
+    pub creation_year: u16,
+}
+
+/// What a finished file holds.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LasSummary {
+    /// Destination written.
+    pub path: PathBuf,
+    /// Points in the file.
+    pub point_count: u64,
+    /// Points per return number 1..=15.
+    pub points_by_return: [u64; 15],
+    /// Header minimum X, Y, Z (m) of the stored (quantised) coordinates; zeros when empty.
+    pub min_m: [f64; 3],
+    /// Header maximum X, Y, Z (m); zeros when empty.
+    pub max_m: [f64; 3],
+    /// Smallest and largest stored GPS time (file convention, s); None when empty.
+    pub gps_time_range: Option<(f64, f64)>,
+    /// File size (bytes).
+    pub file_bytes: u64,
+}
+
+/// Streaming LAS writer: append encoded chunks in order, then [`finish`](LasWriter::finish).
+///
+/// Writes to a temporary file beside the destination; dropping the writer before `finish`
+/// deletes it, so the destination only ever holds a complete file.
+pub struct LasWriter {
+    path: PathBuf,
+    config: LasWriterConfig,
+    file: AtomicFile,
+    stats: ChunkStats,
+    offset_to_points: u32,
+    scratch: Vec<u8>,
+}
+
+impl LasWriter {
+    /// Starts a LAS file at `path` (created or replaced on [`finish`](LasWriter::finish)).
+    pub fn create(path: impl AsRef<Path>, config: LasWriterConfig) -> Result<LasWriter> {
+        let path = path.as_ref().to_path_buf();
+        check_ascii_field("system identifier", &config.system_identifier, 0)?;
+        let vlrs = vlr_bytes(&config)?;
+        let mut file = AtomicFile::with_capacity(&path, WRITE_BUFFER_BYTES)?;
+        file.write_all(&[0u8; HEADER_SIZE])?;
+        file.write_all(&vlrs)?;
+        let offset_to_points = u32::try_from(HEADER_SIZE + vlrs.len())
+            .map_err(|_| Error::Invalid("LAS VLRs too large".into()))?;
+        let record_len = config.layout.record_len;
+        Ok(LasWriter {
+            path,
+            config,
+            file,
+            stats: ChunkStats::empty(record_len),
+            offset_to_points,
+            scratch: Vec::new(),
+        })
+    }
+
+    /// Appends records made by [`encode_points`] with this writer's layout, and their stats.
+    pub fn write_encoded(&mut self, bytes: &[u8], stats: &ChunkStats) -> Result<()> {
+        let record_len = self.config.layout.record_len;
+        if stats.record_len != record_len || bytes.len() as u64 != stats.count * record_len as u64 {
+            return Err(Error::Invalid(format!(
+                "{}: encoded chunk of {} bytes / {} points of {} bytes does not match the \
+                 writer's {record_len}-byte records",
+                self.path.display(),
+                bytes.len(),
+                stats.count,
+                stats.record_len
+            )));
+        }
+        self.file.write_all(bytes)?;
+        self.stats.merge(stats);
+        Ok(())
+    }
+
+    /// Encodes and appends `points` (convenience for callers without a parallel encoder).
+    pub fn write_points(&mut self, points: &[LasPoint]) -> Result<()> {
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.clear();
+        let stats = encode_points(points, &self.config.layout, &mut scratch)
+            .map_err(|e| Error::bad_file(&self.path, e.to_string()))?;
+        let result = self.write_encoded(&scratch, &stats);
+        self.scratch = scratch;
+        result
+    }
+
+    /// Writes the header, fsyncs, and renames the file into place.
+    pub fn finish(self) -> Result<LasSummary> {
+        let LasWriter {
+            path,
+            config,
+            mut file,
+            stats,
+            offset_to_points,
+            ..
+        } = self;
+        let summary = summarise(&path, &config.layout, &stats, offset_to_points);
+        let header = header_bytes(&config, &stats, &summary, offset_to_points)
+            .map_err(|e| Error::bad_file(&path, e))?;
+        file.write_at(0, &header)?;
+        file.commit()?;
+        Ok(summary)
+    }
+}
+
+fn summarise(path: &Path, layout: &PointLayout, stats: &ChunkStats, offset: u32) -> LasSummary {
+    let empty = stats.count == 0;
+    let to_m = |counts: [i32; 3]| -> [f64; 3] {
+        if empty {
+            return [0.0; 3];
+        }
+        std::array::from_fn(|k| f64::from(counts[k]) * layout.scale_m[k] + layout.offset_m[k])
+    };
+    LasSummary {
+        path: path.to_path_buf(),
+        point_count: stats.count,
+        points_by_return: stats.points_by_return,
+        min_m: to_m(stats.min_counts),
+        max_m: to_m(stats.max_counts),
+        gps_time_range: (!empty).then_some((stats.gps_time_min, stats.gps_time_max)),
+        file_bytes: u64::from(offset) + stats.count * stats.record_len as u64,
+    }
+}
