@@ -10,3 +10,4 @@ mod geoid_tiff;
 pub mod local;
 pub mod projection;
 pub mod rotations;
+mod utm;
