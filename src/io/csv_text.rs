@@ -1,6 +1,6 @@
-//! Small shared pieces of kinescan's CSV readers and writers: a streaming line reader with
-//! 1-based line numbers, exact header checking, and field parsers whose errors name the file,
-//! the line and the column.
+//! kinescan's one CSV reader, shared by every CSV format: a streaming line reader with 1-based
+//! line numbers, exact header checking, field parsers whose errors name the file, the line and
+//! the column, and [`CsvTable`] for the small tables read whole with columns looked up by name.
 
 use crate::{Error, Result};
 use std::fs::File;
@@ -109,7 +109,7 @@ pub(crate) fn check_header(
             format!("empty file: expected the header `{}`", expected()),
         ));
     };
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let cols: Vec<&str> = fields(&header).collect();
     for (k, want) in required.iter().enumerate() {
         match cols.get(k) {
             Some(c) if c == want => {}
@@ -151,12 +151,17 @@ pub(crate) fn check_header(
     Ok(present)
 }
 
+/// The trimmed, comma-separated fields of a line (kinescan's CSV has no quoting).
+pub(crate) fn fields(line: &str) -> impl Iterator<Item = &str> {
+    line.split(',').map(str::trim)
+}
+
 /// Splits the current line into exactly `out.len()` trimmed fields.
 pub(crate) fn split_fields<'a, R: BufRead>(lines: &'a Lines<R>, out: &mut [&'a str]) -> Result<()> {
     let mut count = 0;
-    for f in lines.line().split(',') {
+    for f in fields(lines.line()) {
         if let Some(slot) = out.get_mut(count) {
-            *slot = f.trim();
+            *slot = f;
         }
         count += 1;
     }
@@ -229,5 +234,142 @@ impl SeenIds {
             return Err(Error::bad_record(lines.path(), lines.at(), msg));
         }
         Ok(())
+    }
+}
+
+/// A small CSV table read whole (a few hundred lines): columns looked up by name (optional
+/// ones allowed), rows with their 1-based line numbers for messages.
+pub(crate) struct CsvTable {
+    path: PathBuf,
+    columns: Vec<String>,
+    rows: Vec<(usize, Vec<String>)>,
+}
+
+impl CsvTable {
+    /// Reads `path` through [`Lines`]: the first non-blank line is the header, blank lines are
+    /// skipped, every row has the header's number of fields.
+    pub(crate) fn read(path: &Path) -> Result<Self> {
+        let mut lines = Lines::open(path)?;
+        let header = lines
+            .header()?
+            .ok_or_else(|| Error::bad_file(path, "empty file"))?;
+        let columns: Vec<String> = fields(&header).map(str::to_string).collect();
+        let mut rows = Vec::new();
+        while lines.advance()? {
+            let row: Vec<String> = fields(lines.line()).map(str::to_string).collect();
+            if row.len() != columns.len() {
+                let msg = format!(
+                    "{} fields where the header has {}",
+                    row.len(),
+                    columns.len()
+                );
+                return Err(Error::bad_record(path, lines.at(), msg));
+            }
+            rows.push((lines.line_no() as usize, row));
+        }
+        Ok(Self {
+            path: path.to_path_buf(),
+            columns,
+            rows,
+        })
+    }
+
+    /// Index of column `name`, or an error naming the file and the missing column.
+    pub(crate) fn column(&self, name: &str) -> Result<usize> {
+        self.optional_column(name).ok_or_else(|| {
+            let msg = format!(
+                "missing column `{name}` (header: {})",
+                self.columns.join(",")
+            );
+            Error::bad_file(&self.path, msg)
+        })
+    }
+
+    /// Index of column `name` if present.
+    pub(crate) fn optional_column(&self, name: &str) -> Option<usize> {
+        self.columns.iter().position(|c| c == name)
+    }
+
+    /// Rows with their 1-based line numbers.
+    pub(crate) fn rows(&self) -> impl Iterator<Item = (usize, &[String])> {
+        self.rows.iter().map(|(l, f)| (*l, f.as_slice()))
+    }
+
+    /// Parses field `col` of a row as a finite f64; empty gives `None`.
+    pub(crate) fn opt_f64(&self, line: usize, row: &[String], col: usize) -> Result<Option<f64>> {
+        let s = &row[col];
+        if s.is_empty() {
+            return Ok(None);
+        }
+        match s.parse::<f64>() {
+            Ok(v) if v.is_finite() => Ok(Some(v)),
+            _ => {
+                let msg = format!("`{}` = `{s}` is not a finite number", self.columns[col]);
+                Err(self.bad(line, msg))
+            }
+        }
+    }
+
+    /// Parses field `col` as a required finite f64.
+    pub(crate) fn f64(&self, line: usize, row: &[String], col: usize) -> Result<f64> {
+        self.opt_f64(line, row, col)?
+            .ok_or_else(|| self.bad(line, format!("`{}` is empty", self.columns[col])))
+    }
+
+    /// Parses field `col` as an unsigned integer.
+    pub(crate) fn u64(&self, line: usize, row: &[String], col: usize) -> Result<u64> {
+        row[col].parse::<u64>().map_err(|_| {
+            let msg = format!("`{}` = `{}` is not an integer", self.columns[col], row[col]);
+            self.bad(line, msg)
+        })
+    }
+
+    /// A [`Error::BadRecord`] for `line` of this file.
+    pub(crate) fn bad(&self, line: usize, problem: impl Into<String>) -> Error {
+        Error::bad_record(&self.path, format!("line {line}"), problem)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn table(text: &str) -> Result<CsvTable> {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("t.csv");
+        std::fs::write(&path, text).unwrap();
+        CsvTable::read(&path)
+    }
+
+    #[test]
+    fn tables_follow_the_shared_line_rules() {
+        let t = table("\u{feff}site, x_m ,note\r\n\n1,2.5,\r\n2,-1,a\n").unwrap();
+        let (site, x, note) = (t.column("site").unwrap(), t.column("x_m").unwrap(), 2);
+        let rows: Vec<_> = t.rows().collect();
+        assert_eq!(rows.len(), 2);
+        let (line, row) = rows[0];
+        assert_eq!(line, 3, "blank line 2 skipped, line numbers kept");
+        assert_eq!(t.u64(line, row, site).unwrap(), 1);
+        assert_eq!(t.f64(line, row, x).unwrap(), 2.5);
+        assert_eq!(t.opt_f64(line, row, note).unwrap(), None);
+        assert!(t.optional_column("sigma_m").is_none());
+        let e = t.column("sigma_m").unwrap_err().to_string();
+        assert!(
+            e.contains("t.csv") && e.contains("missing column `sigma_m`"),
+            "{e}"
+        );
+        let e = t.f64(4, rows[1].1, note).unwrap_err().to_string();
+        assert!(
+            e.contains("line 4: `note` = `a` is not a finite number"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn table_errors_name_the_line() {
+        let e = |text: &str| table(text).err().unwrap().to_string();
+        assert!(e("a,b\n1\n").contains("line 2: 1 fields where the header has 2"));
+        assert!(e("a,b\n1,2").contains("line 2: the last line has no newline"));
+        assert!(e("\n\n").contains("empty file"));
     }
 }

@@ -234,7 +234,7 @@ fn detect(path: &Path, size: u64) -> Result<FileKind> {
 fn text_kind(first: &[u8]) -> Option<FileKind> {
     let line = std::str::from_utf8(first).ok()?;
     let line = line.trim_start_matches('\u{feff}').trim_end();
-    let cols: Vec<&str> = line.split(',').map(str::trim).collect();
+    let cols: Vec<&str> = super::csv_text::fields(line).collect();
     let starts = |h: &[&str]| cols.len() >= h.len() && cols[..h.len()] == *h;
     if starts(&super::profiles_csv::PROFILE_CSV_REQUIRED) {
         Some(FileKind::ProfilesCsv)

@@ -3,7 +3,7 @@
 pub mod atomic;
 pub mod config_file;
 pub mod counters;
-mod csv_text;
+pub(crate) mod csv_text;
 pub mod digest;
 pub mod info;
 pub mod las;

@@ -157,7 +157,7 @@ fn cut_missing_a_leg_is_a_clear_error() {
     let centres = dir.path().join("tripod_centres.csv");
     let text = std::fs::read_to_string(&centres).unwrap();
     let kept: Vec<&str> = text.lines().filter(|l| !l.starts_with("2,3,")).collect();
-    std::fs::write(&centres, kept.join("\n")).unwrap();
+    std::fs::write(&centres, kept.join("\n") + "\n").unwrap();
     let e = run_boresight_calibration(&dir.path().join("calib_boresight.toml"), dir.path())
         .unwrap_err()
         .to_string();

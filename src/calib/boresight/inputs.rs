@@ -2,9 +2,9 @@
 
 use super::estimate::TripodSite;
 use crate::calib::ellipse::{fit_site_centres, LegScanModel, ScanReturn};
-use crate::calib::files::CsvTable;
 use crate::calib::tripod::BoresightSetup;
 use crate::geo::rotations::r_b_to_n;
+use crate::io::csv_text::CsvTable;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Vector2};
 use std::collections::BTreeMap;

@@ -1,7 +1,7 @@
 //! The lab's CSV files: scanner returns with time tags, table passes, the IMU attitude stream.
 
 use super::estimate::{AttitudeSample, TablePass, TimedReturn};
-use crate::calib::files::CsvTable;
+use crate::io::csv_text::CsvTable;
 use crate::io::profiles_csv::ProfileCsvReader;
 use crate::{Error, Result};
 use std::path::Path;
