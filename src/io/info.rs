@@ -426,7 +426,7 @@ impl fmt::Display for TimeInfo {
 
 impl fmt::Display for ProfileInfo {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let t = &self.tally;
+        let (t, c) = (&self.tally, &self.tally.counters);
         let opt = |v: Option<(u32, u32)>| v.map_or("-".into(), |(a, b)| format!("{a} .. {b}"));
         write!(
             f,
@@ -434,12 +434,12 @@ impl fmt::Display for ProfileInfo {
              wraps/backward steps {}",
             t.returns,
             t.missing_returns,
-            t.profiles,
+            c.profiles,
             opt(t.profile_range),
-            t.jump_count,
-            t.wrap_count
+            c.jump_count,
+            c.wrap_count
         )?;
-        for j in &t.jumps {
+        for j in &c.jumps {
             write!(f, "\n    at {}: {} -> {}", j.at, j.from, j.to)?;
         }
         if let Some((lo, hi)) = t.beta_range_rad {

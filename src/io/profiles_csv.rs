@@ -7,6 +7,8 @@
 //! counter. Everything streams: one line in memory at a time.
 
 use super::atomic::AtomicFile;
+pub use super::counters::CounterJump;
+use super::counters::CounterTracker;
 use super::csv_text::{self, Lines};
 use super::profiles::{ProfileColumns, ProfileFile, ProfileWriter, RawReturn};
 use crate::{Error, Result};
@@ -18,9 +20,6 @@ use std::path::Path;
 pub const PROFILE_CSV_REQUIRED: [&str; 4] = ["profile", "beta_rad", "range_m", "intensity"];
 /// Optional columns, allowed only in this order after the required ones.
 pub const PROFILE_CSV_OPTIONAL: [&str; 2] = ["alpha_rad", "time_s"];
-
-/// At most this many counter jumps are listed in a [`ProfileTally`] (all are counted).
-pub const MAX_LISTED_JUMPS: usize = 100;
 
 /// Streaming CSV profile reader: an iterator of validated returns. The first bad line ends
 /// the iteration with an error naming the file and the 1-based line.
@@ -146,17 +145,6 @@ impl<R: BufRead> Iterator for ProfileCsvReader<R> {
     }
 }
 
-/// A jump of the profile counter by more than one profile (lost profiles) or backwards.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
-pub struct CounterJump {
-    /// Where the new value appears: 1-based line (CSV) or 0-based record (binary).
-    pub at: u64,
-    /// Counter before the jump.
-    pub from: u32,
-    /// Counter after the jump.
-    pub to: u32,
-}
-
 /// Running summary of a stream of returns.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct ProfileTally {
@@ -164,20 +152,12 @@ pub struct ProfileTally {
     pub returns: u64,
     /// Missing returns (range 0).
     pub missing_returns: u64,
-    /// Distinct profiles (counter changes + 1).
-    pub profiles: u64,
-    /// First profile counter.
-    pub first_profile: Option<u32>,
-    /// Last profile counter.
-    pub last_profile: Option<u32>,
+    /// Profile counter: first and last, distinct profiles, jumps and backward steps (the first
+    /// [`super::counters::MAX_LISTED_JUMPS`] listed, all counted).
+    #[serde(flatten)]
+    pub counters: CounterTracker,
     /// Smallest and largest counter.
     pub profile_range: Option<(u32, u32)>,
-    /// Forward jumps by more than one profile (all counted).
-    pub jump_count: u64,
-    /// Backward steps of the counter (wraps or reordering; all counted).
-    pub wrap_count: u64,
-    /// The first [`MAX_LISTED_JUMPS`] forward jumps and backward steps, in file order.
-    pub jumps: Vec<CounterJump>,
     /// Smallest and largest mirror angle beta (rad) over all returns.
     pub beta_range_rad: Option<(f64, f64)>,
 }
@@ -187,35 +167,11 @@ impl ProfileTally {
     pub fn add(&mut self, r: &RawReturn, at: u64) {
         self.returns += 1;
         self.missing_returns += (r.range_m == 0.0) as u64;
-        self.first_profile.get_or_insert(r.profile);
+        self.counters.add(at, r.profile);
         let (lo, hi) = self.profile_range.unwrap_or((r.profile, r.profile));
         self.profile_range = Some((lo.min(r.profile), hi.max(r.profile)));
         let (blo, bhi) = self.beta_range_rad.unwrap_or((r.beta_rad, r.beta_rad));
         self.beta_range_rad = Some((blo.min(r.beta_rad), bhi.max(r.beta_rad)));
-        match self.last_profile {
-            None => self.profiles = 1,
-            Some(prev) if prev != r.profile => {
-                self.profiles += 1;
-                let jump = CounterJump {
-                    at,
-                    from: prev,
-                    to: r.profile,
-                };
-                if r.profile < prev {
-                    self.wrap_count += 1;
-                } else if r.profile - prev > 1 {
-                    self.jump_count += 1;
-                } else {
-                    self.last_profile = Some(r.profile);
-                    return;
-                }
-                if self.jumps.len() < MAX_LISTED_JUMPS {
-                    self.jumps.push(jump);
-                }
-            }
-            Some(_) => {}
-        }
-        self.last_profile = Some(r.profile);
     }
 }
 
@@ -256,15 +212,15 @@ impl RecordLines {
 
 impl std::fmt::Display for ImportSummary {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let t = &self.tally;
+        let (t, c) = (&self.tally, &self.tally.counters);
         writeln!(
             f,
             "{} returns ({} missing) in {} profiles, counter {} .. {}",
             t.returns,
             t.missing_returns,
-            t.profiles,
-            t.first_profile.map_or("-".into(), |p| p.to_string()),
-            t.last_profile.map_or("-".into(), |p| p.to_string()),
+            c.profiles,
+            c.first_profile.map_or("-".into(), |p| p.to_string()),
+            c.last_profile.map_or("-".into(), |p| p.to_string()),
         )?;
         writeln!(
             f,
@@ -272,8 +228,8 @@ impl std::fmt::Display for ImportSummary {
             yes_no(self.columns.alpha),
             yes_no(self.columns.time)
         )?;
-        write!(f, "counter jumps (> 1 profile): {}", t.jump_count)?;
-        for j in &t.jumps {
+        write!(f, "counter jumps (> 1 profile): {}", c.jump_count)?;
+        for j in &c.jumps {
             write!(f, "\n  line {}: {} -> {}", j.at, j.from, j.to)?;
         }
         Ok(())

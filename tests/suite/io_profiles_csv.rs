@@ -98,9 +98,13 @@ fn import_summary_counts_missing_returns_and_jumps() {
     std::fs::write(&csv, body).unwrap();
     let s = import_csv(&csv, &dir.path().join("p.bin")).unwrap();
     let t = &s.tally;
-    assert_eq!((t.returns, t.missing_returns, t.profiles), (6, 2, 5));
-    assert_eq!((t.first_profile, t.last_profile), (Some(10), Some(20)));
-    assert_eq!(t.jump_count, 2);
+    assert_eq!(
+        (t.returns, t.missing_returns, t.counters.profiles),
+        (6, 2, 5)
+    );
+    let c = &t.counters;
+    assert_eq!((c.first_profile, c.last_profile), (Some(10), Some(20)));
+    assert_eq!(c.jump_count, 2);
     // Line 6 (the blank line 5 still counts as a line).
     let want = [
         CounterJump {
@@ -114,7 +118,7 @@ fn import_summary_counts_missing_returns_and_jumps() {
             to: 20,
         },
     ];
-    assert_eq!(t.jumps, want);
+    assert_eq!(c.jumps, want);
     assert_eq!(t.beta_range_rad, Some((-0.3, 0.5)));
     assert!(s.columns.time && !s.columns.alpha);
     let text = s.to_string();
@@ -202,11 +206,15 @@ fn describe_summarises_csv_and_binary_profiles_alike() {
     for info in [&c, &b] {
         let p = info.profiles.as_ref().unwrap();
         assert_eq!(
-            (p.tally.returns, p.tally.missing_returns, p.tally.profiles),
+            (
+                p.tally.returns,
+                p.tally.missing_returns,
+                p.tally.counters.profiles
+            ),
             (4, 1, 3)
         );
         assert_eq!(
-            (p.tally.profile_range, p.tally.jump_count),
+            (p.tally.profile_range, p.tally.counters.jump_count),
             (Some((3, 9)), 1)
         );
         assert_eq!(p.tally.beta_range_rad, Some((-1.5, 1.5)));
@@ -216,8 +224,8 @@ fn describe_summarises_csv_and_binary_profiles_alike() {
     // Jump positions: CSV line 5, binary record 3.
     assert_eq!(
         (
-            c.profiles.unwrap().tally.jumps[0].at,
-            b.profiles.unwrap().tally.jumps[0].at
+            c.profiles.unwrap().tally.counters.jumps[0].at,
+            b.profiles.unwrap().tally.counters.jumps[0].at
         ),
         (5, 3)
     );
