@@ -20,7 +20,7 @@ pub mod latency;
 pub mod sim_table;
 pub mod sim_tripod;
 pub mod sphere;
-pub mod tripod;
+pub(crate) mod tripod;
 
 /// `v > 0` and not NaN: the validity test for sizes, sigmas and rates read from configs.
 pub(crate) fn positive(v: f64) -> bool {

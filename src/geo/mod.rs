@@ -4,7 +4,7 @@
 //! down); `s` scanner. All angles in radians, lengths in metres.
 
 pub mod ellipsoid;
-pub mod epsg;
+pub(crate) mod epsg;
 pub mod geoid;
 mod geoid_tiff;
 pub mod local;

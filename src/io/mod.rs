@@ -2,19 +2,19 @@
 
 pub mod atomic;
 pub mod config_file;
-pub mod counters;
+pub(crate) mod counters;
 pub(crate) mod csv_text;
-pub mod digest;
+pub(crate) mod digest;
 pub mod info;
 pub mod las;
 pub mod laz;
-pub mod mapped;
+pub(crate) mod mapped;
 pub mod patches;
 pub mod paths;
 pub mod points;
 pub mod profiles;
 pub mod profiles_csv;
-pub mod publish;
+pub(crate) mod publish;
 pub mod sbet;
 pub mod smrmsg;
-pub mod timed;
+pub(crate) mod timed;

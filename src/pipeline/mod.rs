@@ -23,15 +23,15 @@
 //! docs/pipeline.md documents the stages and every option.
 
 pub mod config;
-pub mod executor;
-pub mod files;
+pub(crate) mod executor;
+pub(crate) mod files;
 pub mod georeference;
-pub mod prepare;
-pub mod publish;
+pub(crate) mod prepare;
+pub(crate) mod publish;
 pub mod report;
-pub mod schema;
-pub mod sync;
-pub mod write;
+pub(crate) mod schema;
+pub(crate) mod sync;
+pub(crate) mod write;
 
 pub use config::{load, LoadedPipeline};
 pub use executor::RunOptions;

@@ -3,7 +3,7 @@
 //! stage timings. Written to `OutputConfig::report_path`.
 
 use super::config::PipelineConfig;
-use super::sync::SyncStageReport;
+pub use super::sync::SyncStageReport;
 use crate::io::atomic::write_json;
 pub use crate::io::digest::{hex, FileRecord};
 use crate::Result;

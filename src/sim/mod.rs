@@ -10,11 +10,11 @@
 
 mod checker;
 pub mod dynamics;
-pub mod effects;
-pub mod nav;
+pub(crate) mod effects;
+pub(crate) mod nav;
 mod outputs;
-pub mod route;
-pub mod scanner;
+pub(crate) mod route;
+pub(crate) mod scanner;
 pub mod scenario;
 pub mod scene;
 pub mod world;

@@ -17,7 +17,6 @@ use super::scenario::Scenario;
 use super::scene::{Scene, GROUND};
 use crate::georef::{beam_e, Sensor};
 use crate::io::profiles::{encode, RawReturn, PROFILE_RECORD_BYTES};
-use crate::io::sbet::SbetRecord;
 use crate::timing::{Mirror, MirrorDirection, ScannerClock};
 use crate::trajectory::{interpolate, NavSample, Pose};
 use nalgebra::Vector3;
@@ -301,9 +300,4 @@ pub fn profile(
         }
     }
     out
-}
-
-/// Converts true SBET records to nav samples (the pipeline's decoding).
-pub fn to_samples(recs: &[SbetRecord]) -> Vec<NavSample> {
-    recs.iter().map(NavSample::from_sbet).collect()
 }

@@ -15,13 +15,13 @@
 //! `refined_estimate` (the refined method, on the `refined` model), `detect`, `geometry`,
 //! `paper`, `hardware`, `plots`.
 
-pub mod detect;
-pub mod geometry;
-pub mod hardware;
+pub(crate) mod detect;
+pub(crate) mod geometry;
+pub(crate) mod hardware;
 mod options;
-pub mod paper;
+pub(crate) mod paper;
 pub mod plots;
-pub mod refined;
+pub(crate) mod refined;
 mod refined_estimate;
 mod result;
 mod sightings;

@@ -13,8 +13,8 @@
 //! `[scenario]` studies). Submodules: [`config`] (the study file), [`points`] (the points
 //! studied and their sigmas), [`tables`] (CSV tables and plots).
 
-pub mod config;
-pub mod points;
+pub(crate) mod config;
+pub(crate) mod points;
 mod tables;
 
 pub use config::*;
