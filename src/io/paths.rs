@@ -92,28 +92,24 @@ pub fn in_out_dir(out_dir: &Path, names: &[&str]) -> Vec<KeyedPath> {
 pub fn check_collisions(inputs: &[KeyedPath], outputs: &[KeyedPath]) -> Result<()> {
     let input_ids: Vec<FileId> = inputs.iter().map(|(_, p)| FileId::of(p)).collect();
     let output_ids: Vec<FileId> = outputs.iter().map(|(_, p)| FileId::of(p)).collect();
-    for (o, (o_key, o_path)) in outputs.iter().enumerate() {
-        for (i, (i_key, i_path)) in inputs.iter().enumerate() {
-            if output_ids[o].same_as(&input_ids[i]) {
-                return Err(Error::Collision {
-                    output_key: o_key.clone(),
-                    output: o_path.clone(),
-                    other_key: i_key.clone(),
-                    other: i_path.clone(),
-                    problem: "is the same file as the input".into(),
-                });
-            }
+    let collision = |(key, path): &KeyedPath, (other_key, other): &KeyedPath, what: &str| {
+        Err(Error::Collision {
+            output_key: key.clone(),
+            output: path.clone(),
+            other_key: other_key.clone(),
+            other: other.clone(),
+            problem: format!("is the same file as the {what}"),
+        })
+    };
+    for (o, output) in outputs.iter().enumerate() {
+        if let Some(i) = input_ids.iter().position(|id| output_ids[o].same_as(id)) {
+            return collision(output, &inputs[i], "input");
         }
-        for (e, (e_key, e_path)) in outputs.iter().enumerate().take(o) {
-            if output_ids[o].same_as(&output_ids[e]) {
-                return Err(Error::Collision {
-                    output_key: o_key.clone(),
-                    output: o_path.clone(),
-                    other_key: e_key.clone(),
-                    other: e_path.clone(),
-                    problem: "is the same file as the output".into(),
-                });
-            }
+        if let Some(e) = output_ids[..o]
+            .iter()
+            .position(|id| output_ids[o].same_as(id))
+        {
+            return collision(output, &outputs[e], "output");
         }
     }
     Ok(())

@@ -44,11 +44,7 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
             sigma,
         ));
     }
-    let mut out = Vec::new();
-    for (site, line, att, sig) in read_attitudes(attitudes)? {
-        let l = legs
-            .remove(&site)
-            .ok_or_else(|| attitude_error(attitudes, line, site, "ellipse centres"))?;
+    with_attitudes(legs, attitudes, "ellipse centres", |site, l, att, sig| {
         let found: Vec<usize> = (0..3).filter(|&i| l[i].is_some()).map(|i| i + 1).collect();
         if found.len() != 3 {
             return Err(Error::bad_file(
@@ -59,21 +55,39 @@ pub fn read_sites(centres: &Path, attitudes: &Path) -> Result<Vec<TripodSite>> {
             ));
         }
         let l = l.map(|x| x.unwrap_or_default());
-        out.push(TripodSite {
+        Ok(TripodSite {
             site,
             centres_s_m: l.map(|x| x.0),
             cov_centre_s_m2: l.map(|x| Matrix2::identity() * x.1 * x.1),
             attitude_rad: att,
             sigma_attitude_rad: sig,
-        });
+        })
+    })
+}
+
+/// Pairs each site's data (`by_site`, the `what` of the site, e.g. "ellipse centres") with its
+/// row of `attitudes` through `site_of`, in site order; a site missing from either file is an
+/// error naming it.
+fn with_attitudes<T>(
+    mut by_site: BTreeMap<u64, T>,
+    attitudes: &Path,
+    what: &str,
+    mut site_of: impl FnMut(u64, T, [f64; 3], [f64; 3]) -> Result<TripodSite>,
+) -> Result<Vec<TripodSite>> {
+    let mut rows = read_attitudes(attitudes)?;
+    rows.sort_by_key(|r| r.0);
+    let mut out = Vec::new();
+    for (site, line, att, sig) in rows {
+        let data = by_site.remove(&site).ok_or_else(|| {
+            let problem = format!("site {site} has no {what}");
+            Error::bad_record(attitudes, format!("line {line}"), problem)
+        })?;
+        out.push(site_of(site, data, att, sig)?);
     }
-    if let Some(site) = legs.keys().next() {
-        return Err(Error::bad_file(
-            attitudes,
-            format!("site {site} has ellipse centres but no attitude"),
-        ));
+    if let Some(site) = by_site.keys().next() {
+        let problem = format!("site {site} has {what} but no attitude");
+        return Err(Error::bad_file(attitudes, problem));
     }
-    out.sort_by_key(|s| s.site);
     Ok(out)
 }
 
@@ -108,14 +122,6 @@ fn read_attitudes(attitudes: &Path) -> Result<Vec<AttitudeRow>> {
     Ok(out)
 }
 
-fn attitude_error(attitudes: &Path, line: usize, site: u64, what: &str) -> Error {
-    Error::bad_record(
-        attitudes,
-        format!("line {line}"),
-        format!("site {site} has no {what}"),
-    )
-}
-
 /// Reads raw static scans `site,beta_rad,range_m,intensity` and the site attitudes, and fits
 /// each site's ellipse centres with their fitted covariances ([`fit_site_centres`]; sites in
 /// id order, the legs labelled consistently with the first site's).
@@ -141,33 +147,19 @@ pub fn read_scan_sites(
             .or_default()
             .push(ScanReturn { beta_rad, range_m });
     }
-    let mut out = Vec::new();
-    let mut rows = read_attitudes(attitudes)?;
-    rows.sort_by_key(|r| r.0);
     let mut reference = None;
-    for (site, line, att, sig) in rows {
-        let r = returns
-            .remove(&site)
-            .ok_or_else(|| attitude_error(attitudes, line, site, "scan returns"))?;
+    with_attitudes(returns, attitudes, "scan returns", |site, r, att, sig| {
         let r_b_n = r_b_to_n(att[0], att[1], att[2]);
         let fitted = fit_site_centres(site, &r, model, setup, &r_b_n, reference.as_ref())
             .map_err(|e| Error::bad_file(scans, e.to_string()))?;
         reference.get_or_insert(fitted.legs_n_prior);
         let fits = fitted.fits;
-        out.push(TripodSite {
+        Ok(TripodSite {
             site,
             centres_s_m: [0, 1, 2].map(|i| fits[i].centre_s_m),
             cov_centre_s_m2: [0, 1, 2].map(|i| fits[i].cov_s_m2),
             attitude_rad: att,
             sigma_attitude_rad: sig,
-        });
-    }
-    if let Some(site) = returns.keys().next() {
-        return Err(Error::bad_file(
-            attitudes,
-            format!("site {site} has scan returns but no attitude"),
-        ));
-    }
-    out.sort_by_key(|s| s.site);
-    Ok(out)
+        })
+    })
 }

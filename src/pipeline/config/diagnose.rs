@@ -1,6 +1,6 @@
 //! `[diagnose]`: the options of `kinescan diagnose` (docs/diagnosis.md).
 
-use super::Refusal;
+use super::refusal::{require_positive, Refusal};
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 
@@ -95,11 +95,7 @@ impl DiagnoseConfig {
             ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
             ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
         ];
-        for (key, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err((key, format!("must be a finite number > 0, got {v}")));
-            }
-        }
+        require_positive(&positive)?;
         if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
             let v = self.edge_margin_m;
             return Err(("diagnose.edge_margin_m", format!("must be >= 0, got {v}")));

@@ -1,6 +1,6 @@
 //! `[inputs]` (what is read) and `[trajectory]` (how the trajectory is interpolated).
 
-use super::Refusal;
+use super::refusal::Refusal;
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 

@@ -15,6 +15,7 @@
 mod diagnose;
 mod inputs;
 mod output;
+mod refusal;
 mod sensor;
 mod sync;
 mod uncertainty;
@@ -22,6 +23,7 @@ mod uncertainty;
 pub use diagnose::DiagnoseConfig;
 pub use inputs::{InputsConfig, TrajectoryConfig};
 pub use output::{FrameConfig, OutputConfig, SplitMode, Strictness};
+pub use refusal::Refusal;
 pub use sensor::{LatencyConfig, SensorConfig, TimeConfig, MIN_PERIOD_S};
 pub use sync::SyncConfig;
 pub use uncertainty::UncertaintyConfig;
@@ -31,9 +33,6 @@ pub use crate::timing::TimeModel;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
-
-/// A refused value: its dotted key and what is wrong.
-pub type Refusal = (&'static str, String);
 
 /// A whole pipeline definition.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,6 +1,6 @@
 //! `[output]`: the map frame, the LAS file(s) and what they hold.
 
-use super::Refusal;
+use super::refusal::Refusal;
 use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
 use crate::io::config_file::ConfigPath;

@@ -1,7 +1,7 @@
 //! The scanner: `[sensor]` (mounting, intrinsics, range limits), `[time]` (its clock) and
 //! `[latency]` (IMU-to-scanner latencies).
 
-use super::Refusal;
+use super::refusal::Refusal;
 use crate::timing::{MirrorDirection, TimeModel};
 use serde::{Deserialize, Serialize};
 

@@ -1,6 +1,7 @@
 //! `[sync]`: object-space time synchronisation before georeferencing (docs/sync.md).
 
-use super::{Refusal, TimeConfig};
+use super::refusal::{require_positive, Refusal};
+use super::sensor::TimeConfig;
 use crate::io::config_file::ConfigPath;
 use crate::timing::TimeModel;
 use serde::{Deserialize, Serialize};
@@ -100,11 +101,7 @@ impl SyncConfig {
                 self.period_approx_s.unwrap_or(t.period_s),
             ),
         ];
-        for (key, v) in checks {
-            if !(v.is_finite() && v > 0.0) {
-                return Err((key, format!("must be a finite number > 0, got {v}")));
-            }
-        }
+        require_positive(&checks)?;
         if self.estimate_latency && self.method == crate::sync::Method::Paper {
             return Err((
                 "sync.estimate_latency",

@@ -1,6 +1,6 @@
 //! `[uncertainty]`: the 1-sigma inputs of the per-point uncertainty (docs/uncertainty.md).
 
-use super::Refusal;
+use super::refusal::Refusal;
 use serde::{Deserialize, Serialize};
 
 /// `[uncertainty]`: 1-sigma of the inputs not in the SMRMSG file (conventions §5). Every sigma must be
