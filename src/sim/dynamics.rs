@@ -2,9 +2,11 @@
 //! angle 0, so platform heading = true heading and x/y velocity = north/east).
 //!
 //! Position: the route point, on the sloped ground, IMU `imu_height_m` above it, plus vertical
-//! road vibration. Attitude in the scene frame: heading along the path, pitch from the slope
+//! road vibration. Attitude in the scene frame: heading along the path (its direction
+//! averaged over 1 m of arc, so the yaw rate ramps into a corner), pitch from the slope
 //! along the heading plus `k_pitch * a_lon` (nose up accelerating), roll from the cross slope
-//! plus `k_roll * a_lat` (rolling out of the turn), both through a first-order lag, plus
+//! plus `k_roll * a_lat` (rolling out of the turn), both through a second-order lag (two
+//! first-order lags of half the body time constant), plus
 //! road vibration (three sinusoids per channel, amplitude proportional to speed). The scene
 //! attitude is rotated to the local NED frame of the vehicle's own position. Between samples
 //! the truth is, by definition, `trajectory::interpolate` of these samples.
@@ -72,7 +74,8 @@ pub struct TruthGen {
     /// Frequency (Hz) and phase (rad) of 3 sinusoids for roll, pitch, vertical.
     vib: [[(f64, f64); 3]; 3],
     k: u64,
-    lag: [f64; 2],
+    /// Roll and pitch body terms after the first and the second lag stage.
+    lag: [[f64; 2]; 2],
     prev: Option<(f64, f64, f64)>,
 }
 
@@ -93,7 +96,7 @@ impl TruthGen {
             v_top: sc.route.max_speed_mps,
             vib,
             k: 0,
-            lag: [0.0; 2],
+            lag: [[0.0; 2]; 2],
             prev: None,
         }
     }
@@ -123,10 +126,16 @@ impl TruthGen {
         let p = self.route.at(m.s_m);
         let [gx, gy] = self.slope;
         let (de, dn) = (p.dir[0], p.dir[1]);
-        let a_lat = m.v_mps * m.v_mps * p.curvature;
-        // First-order lag of the body response (exact discretisation).
+        // The body's heading (and the lateral acceleration of its turn) follows the smoothed
+        // path direction: the yaw rate is continuous.
+        let (steer_rad, steer_curvature) = self.route.steered(m.s_m);
+        let (hn, he) = steer_rad.sin_cos();
+        let a_lat = m.v_mps * m.v_mps * steer_curvature;
+        // Two first-order lags of half the body time constant each (each exact for an input
+        // held over the step):
+        // the body's roll and pitch rates stay continuous when an acceleration steps.
         let w = if self.cfg.body_time_constant_s > 0.0 {
-            1.0 - (-dt / self.cfg.body_time_constant_s).exp()
+            1.0 - (-2.0 * dt / self.cfg.body_time_constant_s).exp()
         } else {
             1.0
         };
@@ -134,11 +143,14 @@ impl TruthGen {
             self.cfg.roll_per_lateral_acc_deg.to_radians() * a_lat,
             self.cfg.pitch_per_longitudinal_acc_deg.to_radians() * m.a_mps2,
         ];
-        for (lag, target) in self.lag.iter_mut().zip(target) {
-            *lag = if self.k == 0 {
-                target
+        let k0 = self.k == 0;
+        let [first, second] = &mut self.lag;
+        for ((l1, l2), target) in first.iter_mut().zip(second.iter_mut()).zip(target) {
+            (*l1, *l2) = if k0 {
+                (target, target)
             } else {
-                *lag + w * (target - *lag)
+                let l1_next = *l1 + w * (target - *l1);
+                (l1_next, *l2 + w * (l1_next - *l2))
             };
         }
         let amp = (m.v_mps / self.v_top).min(1.0);
@@ -150,13 +162,13 @@ impl TruthGen {
                 / 3.0
                 * amp
         };
-        let roll = -(gx * de - gy * dn).atan()
-            + self.lag[0]
+        let roll = -(gx * he - gy * hn).atan()
+            + self.lag[1][0]
             + self.cfg.vibration_deg[0].to_radians() * vib(0);
-        let pitch = (gx * de + gy * dn).atan()
-            + self.lag[1]
+        let pitch = (gx * he + gy * hn).atan()
+            + self.lag[1][1]
             + self.cfg.vibration_deg[1].to_radians() * vib(1);
-        let heading = de.atan2(dn);
+        let heading = he.atan2(hn);
         let z = gx * p.xy[0]
             + gy * p.xy[1]
             + self.cfg.imu_height_m

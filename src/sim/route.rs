@@ -4,10 +4,16 @@
 //! functions of time. Laps repeat identically; every lap starts and ends standing still.
 
 use super::scenario::RouteCfg;
+use crate::geo::rotations::wrap_pi;
 use crate::{Error, Result};
 
 /// Arc-length step of the speed profile (m).
 const DS_M: f64 = 0.25;
+
+/// Arc length (m) over which the body's heading is the path direction averaged: the yaw rate
+/// ramps into and out of an arc instead of stepping (a vehicle steers continuously; a step
+/// would be a kink no 200 Hz sampling reproduces, e.g. once shifted by a latency).
+const HEADING_WINDOW_M: f64 = 1.0;
 
 #[derive(Debug, Clone, Copy)]
 enum Element {
@@ -119,6 +125,31 @@ impl Route {
                 }
             }
         }
+    }
+
+    /// The body's heading at arc length `s`: the path direction angle (rad, counter-clockwise
+    /// from east) averaged over [`HEADING_WINDOW_M`] centred on `s`, and its rate along the
+    /// path (1/m, the smoothed curvature). Equal to the path's on straights and inside arcs
+    /// longer than the window.
+    pub fn steered(&self, s: f64) -> (f64, f64) {
+        let angle = |s: f64| {
+            let d = self.at(s).dir;
+            d[1].atan2(d[0])
+        };
+        let (a, half) = (angle(s), HEADING_WINDOW_M / 2.0);
+        // The direction angle is linear in s on each element: the mean over a piece is the
+        // value at its middle.
+        let (mut lo, hi, mut sum) = (s - half, s + half, 0.0);
+        while lo < hi {
+            let wrapped = lo.rem_euclid(self.length_m);
+            let i = self.elements.partition_point(|e| e.1 <= wrapped);
+            let end = self.elements.get(i).map_or(self.length_m, |e| e.1);
+            let piece_end = hi.min(lo + (end - wrapped).max(1e-9));
+            sum += (piece_end - lo) * wrap_pi(angle((lo + piece_end) / 2.0) - a);
+            lo = piece_end;
+        }
+        let curvature = wrap_pi(angle(s + half) - angle(s - half)) / HEADING_WINDOW_M;
+        (a + sum / HEADING_WINDOW_M, curvature)
     }
 
     /// Motion at time `t` since the start of the first lap (s).

@@ -110,6 +110,11 @@ pub struct Pair {
 /// Georeferences every valid return of `dir` as the pipeline does (configured parameters,
 /// latency 0) and pairs it with its truth. Also checks missing returns are marked in both.
 pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
+    georef_pairs_with_latency(dir, 0.0)
+}
+
+/// [`georef_pairs`] with the pipeline's attitude latency `tau_s` (s, conventions §2).
+pub fn georef_pairs_with_latency(dir: &Path, tau_s: f64) -> Vec<Pair> {
     let (sensor, clock) = configured(dir);
     let traj = Trajectory::open(
         &dir.join("trajectory.sbet"),
@@ -117,7 +122,7 @@ pub fn georef_pairs(dir: &Path) -> Vec<Pair> {
         TrajectoryOptions::default(),
     )
     .unwrap();
-    let mut cursor = PoseCursor::new(&traj, 0.0, 0.0);
+    let mut cursor = PoseCursor::new(&traj, tau_s, 0.0);
     let prof = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
     let truth = read_truth_points(&dir.join("truth_points.bin")).unwrap();
     assert_eq!(prof.len(), truth.len());
