@@ -7,7 +7,7 @@ use super::georeference::ReturnGeoreferencer;
 use super::prepare::PreparedInput;
 use super::report::{FileRecord, InputReport, RejectReason, ReturnCounts};
 use super::schema::PointFill;
-use super::write::LasSink;
+use super::write::{encode_error, LasSink};
 use crate::io::counters::CounterTracker;
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::ProfileFile;
@@ -15,29 +15,6 @@ use crate::{Error, Result};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 use std::ops::Range;
-
-/// How a run is executed (not what it computes: that is the pipeline file).
-#[derive(Debug, Clone)]
-pub struct RunOptions {
-    /// Worker threads (None: all cores).
-    pub threads: Option<usize>,
-    /// Show a progress bar (only drawn when stderr is a terminal).
-    pub progress: bool,
-    /// Returns per parallel work item (default 16,384). A batch of 8 items per thread is in
-    /// flight while the writer takes the previous one: small items keep both workers busy
-    /// while the writer thread shares their cores.
-    pub chunk_returns: usize,
-}
-
-impl Default for RunOptions {
-    fn default() -> Self {
-        RunOptions {
-            threads: None,
-            progress: true,
-            chunk_returns: 1 << 14,
-        }
-    }
-}
 
 /// Points encoded at a time (keeps the per-thread point buffer in cache).
 const ENCODE_BATCH: usize = 1024;
@@ -125,33 +102,8 @@ fn encode_into(
             out.stats.merge(&stats);
             Ok(())
         }
-        Err(e) => Err(name_encode_error(e, batch, records, layout, file)),
+        Err(e) => Err(encode_error(e, batch, records, layout, file)),
     }
-}
-
-fn name_encode_error(
-    e: Error,
-    batch: &[LasPoint],
-    records: &[usize],
-    layout: &PointLayout,
-    file: &ProfileFile,
-) -> Error {
-    let failing = (0..batch.len())
-        .find(|&k| encode_points(&batch[k..=k], layout, &mut Vec::new()).is_err())
-        .unwrap_or(0);
-    let mut problem = e.to_string();
-    if let Some((_, what)) = problem.split_once(" of the chunk: ") {
-        problem = what.to_string();
-    }
-    if problem.contains("beyond what LAS can store") {
-        let p = &batch[failing];
-        let near = [p.x, p.y, p.z].map(|v| (v / 1000.0).round() * 1000.0);
-        problem += &format!(
-            ": set output.offset_m near the data (e.g. [{}, {}, {}]) or a coarser output.scale_m",
-            near[0], near[1], near[2]
-        );
-    }
-    Error::bad_record(file.path(), format!("record {}", records[failing]), problem)
 }
 
 /// Record buffers handed back by the writer for reuse: a fresh multi-megabyte buffer per chunk

@@ -34,13 +34,35 @@ pub(crate) mod sync;
 pub(crate) mod write;
 
 pub use config::{load, LoadedPipeline};
-pub use executor::RunOptions;
 
 use georeference::ReturnGeoreferencer;
 use report::{OutputReport, ReturnCounts, RunReport, StageTiming};
 use schema::OutputSchema;
 use std::time::Instant;
 use write::{LasSink, SinkSettings};
+
+/// How a run is executed (not what it computes: that is the pipeline file).
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Worker threads (None: all cores).
+    pub threads: Option<usize>,
+    /// Show a progress bar (only drawn when stderr is a terminal).
+    pub progress: bool,
+    /// Returns per parallel work item (default 16,384). A batch of 8 items per thread is in
+    /// flight while the writer takes the previous one: small items keep both workers busy
+    /// while the writer thread shares their cores.
+    pub chunk_returns: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            threads: None,
+            progress: true,
+            chunk_returns: 1 << 14,
+        }
+    }
+}
 
 /// Runs a loaded pipeline: every stage after load; the LAS output(s) and the run report (at
 /// [`config::OutputConfig::report_path`]) are published as one set ([`publish`]) when every

@@ -8,9 +8,10 @@ use super::schema::OutputSchema;
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
-    stats_of_records, ChunkStats, GpsTimeConvention, LasSummary, LasWriter, LasWriterConfig,
-    PointLayout, SECONDS_PER_GPS_WEEK,
+    encode_points, stats_of_records, ChunkStats, GpsTimeConvention, LasPoint, LasSummary,
+    LasWriter, LasWriterConfig, PointLayout, SECONDS_PER_GPS_WEEK,
 };
+use crate::io::profiles::ProfileFile;
 use crate::trajectory::Trajectory;
 use crate::{Error, Result};
 use std::path::{Path, PathBuf};
@@ -208,4 +209,31 @@ mod tests {
         assert_eq!(creation_date(Some(2346), 10.0 * 86_400.0 + 5.0), (1, 2025));
         assert_eq!(creation_date(None, 0.0), (0, 0));
     }
+}
+
+/// Names a chunk's encoding error `e` by the record of `file` that fails (`records[k]` is the
+/// record of `batch[k]`); a coordinate beyond the LAS range by the keys that fix it.
+pub(super) fn encode_error(
+    e: Error,
+    batch: &[LasPoint],
+    records: &[usize],
+    layout: &PointLayout,
+    file: &ProfileFile,
+) -> Error {
+    let failing = (0..batch.len())
+        .find(|&k| encode_points(&batch[k..=k], layout, &mut Vec::new()).is_err())
+        .unwrap_or(0);
+    let mut problem = e.to_string();
+    if let Some((_, what)) = problem.split_once(" of the chunk: ") {
+        problem = what.to_string();
+    }
+    if problem.contains("beyond what LAS can store") {
+        let p = &batch[failing];
+        let near = [p.x, p.y, p.z].map(|v| (v / 1000.0).round() * 1000.0);
+        problem += &format!(
+            ": set output.offset_m near the data (e.g. [{}, {}, {}]) or a coarser output.scale_m",
+            near[0], near[1], near[2]
+        );
+    }
+    Error::bad_record(file.path(), format!("record {}", records[failing]), problem)
 }
