@@ -196,21 +196,6 @@ impl LasSink {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::creation_date;
-
-    #[test]
-    fn creation_date_from_gps_week() {
-        // GPS week 0 starts 1980-01-06 (day 6); week 2346 starts 2024-12-22 (day 357 of a
-        // leap year), and ten days later is 2025-01-01.
-        assert_eq!(creation_date(Some(0), 0.0), (6, 1980));
-        assert_eq!(creation_date(Some(2346), 0.0), (357, 2024));
-        assert_eq!(creation_date(Some(2346), 10.0 * 86_400.0 + 5.0), (1, 2025));
-        assert_eq!(creation_date(None, 0.0), (0, 0));
-    }
-}
-
 /// Names a chunk's encoding error `e` by the record of `file` that fails (`records[k]` is the
 /// record of `batch[k]`); a coordinate beyond the LAS range by the keys that fix it.
 pub(super) fn encode_error(
@@ -236,4 +221,19 @@ pub(super) fn encode_error(
         );
     }
     Error::bad_record(file.path(), format!("record {}", records[failing]), problem)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::creation_date;
+
+    #[test]
+    fn creation_date_from_gps_week() {
+        // GPS week 0 starts 1980-01-06 (day 6); week 2346 starts 2024-12-22 (day 357 of a
+        // leap year), and ten days later is 2025-01-01.
+        assert_eq!(creation_date(Some(0), 0.0), (6, 1980));
+        assert_eq!(creation_date(Some(2346), 0.0), (357, 2024));
+        assert_eq!(creation_date(Some(2346), 10.0 * 86_400.0 + 5.0), (1, 2025));
+        assert_eq!(creation_date(None, 0.0), (0, 0));
+    }
 }
