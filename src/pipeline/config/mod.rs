@@ -121,3 +121,29 @@ fn check(c: &PipelineConfig) -> std::result::Result<(), Refusal> {
 fn yes() -> bool {
     true
 }
+
+#[cfg(test)]
+mod tests {
+    /// Every path key of a pipeline file is a `ConfigPath` (resolved against the file's folder
+    /// by type): a `PathBuf` field in a table would be read relative to the working directory.
+    #[test]
+    fn tables_hold_paths_as_config_paths() {
+        let tables = [
+            include_str!("inputs.rs"),
+            include_str!("sensor.rs"),
+            include_str!("output.rs"),
+            include_str!("uncertainty.rs"),
+            include_str!("sync.rs"),
+            include_str!("diagnose.rs"),
+        ];
+        for text in tables {
+            let fields = text.lines().filter(|l| l.trim_start().starts_with("pub "));
+            let raw: Vec<&str> = fields.filter(|l| l.contains("PathBuf")).collect();
+            assert!(raw.is_empty(), "{raw:?}");
+        }
+        assert!(
+            tables[0].contains("pub sbet: ConfigPath"),
+            "the check reads the fields"
+        );
+    }
+}
