@@ -34,6 +34,7 @@ pub(crate) mod sync;
 pub(crate) mod write;
 
 pub use config::{load, LoadedPipeline};
+pub use sync::ResolvedClock;
 
 use georeference::ReturnGeoreferencer;
 use report::{OutputReport, ReturnCounts, RunReport, StageTiming};

@@ -19,6 +19,7 @@ pub mod scenario;
 pub mod scene;
 pub mod world;
 
+pub use effects::Effects;
 pub use outputs::{read_truth_points, TRUTH_HEADER_BYTES, TRUTH_MAGIC, TRUTH_RECORD_BYTES};
 pub use scenario::Scenario;
 
