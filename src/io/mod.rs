@@ -2,7 +2,7 @@
 
 pub mod atomic;
 pub mod config_file;
-pub(crate) mod counters;
+pub mod counters;
 pub(crate) mod csv_text;
 pub(crate) mod digest;
 pub mod info;
@@ -17,4 +17,4 @@ pub mod profiles_csv;
 pub(crate) mod publish;
 pub mod sbet;
 pub mod smrmsg;
-pub(crate) mod timed;
+pub mod timed;

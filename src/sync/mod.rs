@@ -26,6 +26,7 @@ mod refined_estimate;
 mod result;
 mod sightings;
 
+pub use geometry::TargetReturn;
 pub use hardware::HardwareComparison;
 pub use options::{Method, SyncOptions, SyncTarget};
 pub use refined_estimate::cramer_rao_bound;
