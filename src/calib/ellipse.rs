@@ -358,7 +358,7 @@ pub struct SiteCentres {
 }
 
 /// Ellipse centres of legs 1, 2, 3 at one site from its raw returns: runs ([`leg_runs`]), a
-/// circle start, then refits with the ellipse shapes from the tripod solution ([`solve_site`]
+/// circle start, then refits with the ellipse shapes from the tripod solution (`tripod::solve_site`
 /// with `r_b_to_n` (the site's IMU attitude, convention) times the nominal boresight as the prior)
 /// until the centres settle. Labelling: the legs are fixed in NED, so with `reference` (the
 /// `legs_n_prior` of an earlier site) the permutation whose prior NED leg directions best match

@@ -40,7 +40,7 @@ use crate::{Error, Result};
 /// - `Ecef`: WGS84 ECEF (x, y, z) in m (EPSG:4978).
 /// - `LocalEnu`: East, North, Up (m) in the tangent frame at `origin`, relative to the origin.
 /// - `Epsg`: (easting, northing) of a projected CRS in its unit, WGS84 ellipsoidal height (m)
-///   (see [`EpsgCrs`]).
+///   (see `geo::epsg`).
 ///
 /// Serialised internally tagged, e.g. TOML `{ kind = "utm", zone = 32, north = true }`,
 /// `{ kind = "ecef" }`, `{ kind = "local_enu", origin = { lat_rad = .., lon_rad = .., h_m = .. } }`,
@@ -167,7 +167,9 @@ impl MapFrame {
         }
     }
 
-    /// The projected CRS EPSG `code` (see [`EpsgCrs`] for what is accepted).
+    /// The projected CRS EPSG `code` (projected CRSs on WGS84 or with a stated Helmert to it;
+    /// refused with the reason: unknown codes, geographic and geocentric CRSs, grid-shift datums,
+    /// projections `proj4rs` lacks).
     pub fn from_epsg(code: u32) -> Result<Self> {
         EpsgCrs::get(code)
             .map(|crs| MapFrame::Epsg { crs })
@@ -345,7 +347,7 @@ impl MapFrame {
     ///   radii); the height axis is unchanged.
     /// - ECEF: `R_enu^e` at the point.
     /// - Local ENU: `R_e^enu(origin) * R_enu^e(point)`.
-    /// - EPSG: [`EpsgCrs::r_enu_to_grid_m`], the grid axes in metres whatever the CRS unit.
+    /// - EPSG: the CRS's grid axes (`EpsgCrs::r_enu_to_grid_m`) in metres whatever the CRS unit.
     ///
     /// Exact derivative (checked against central finite differences to 1e-8 in
     /// `tests/frames.rs`).

@@ -136,7 +136,8 @@ impl ProfileFile {
         self.records.records(range)
     }
 
-    /// Releases the resident pages of records `range` (see [`MappedRecords::release`]).
+    /// Releases the resident pages of records `range` (and some before it, `io::mapped`): memory
+    /// stays flat over a large file; the records are read again if touched.
     pub fn release(&self, range: std::ops::Range<usize>) {
         self.records.release(range)
     }

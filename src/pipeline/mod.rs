@@ -4,21 +4,21 @@
 //!
 //! 1. **load** ([`config::load`]): the pipeline file parsed, `--set` overrides applied, every
 //!    key and value checked, paths resolved -> [`config::LoadedPipeline`].
-//! 2. **prepare** ([`prepare::run`]): the trajectory opened and validated, the output frame
-//!    fixed, profile files memory-mapped (CSV files imported) -> [`prepare::Prepared`].
-//! 3. **sync** ([`sync::run`]): the clock of every input resolved (t0, T, latencies and their
+//! 2. **prepare** (`prepare::run`): the trajectory opened and validated, the output frame
+//!    fixed, profile files memory-mapped (CSV files imported) -> `prepare::Prepared`.
+//! 3. **sync** (`sync::run`): the clock of every input resolved (t0, T, latencies and their
 //!    covariances; estimated from sync targets with `[sync]`) before anything is built from
-//!    it -> [`sync::Synced`].
+//!    it -> `sync::Synced`.
 //! 4. **georeference** (+ uncertainty) ([`georeference::ReturnGeoreferencer`], one per
 //!    input): per return the time model, the pose, the conventions §4 equation, the map projection
 //!    and the per-point sigmas -> [`georeference::GeoreferencedReturn`], filled into a LAS
-//!    point by the [`schema::OutputSchema`]'s [`schema::PointFill`].
-//! 5. **write** ([`write::LasSink`]): encoded records written in input order, split into
+//!    point by the `schema::OutputSchema`'s `schema::PointFill`.
+//! 5. **write** (`write::LasSink`): encoded records written in input order, split into
 //!    files as configured, each atomically -> [`report::OutputReport`]s.
 //! 6. **report** ([`report`]): the run report assembled and written to
 //!    [`config::OutputConfig::report_path`] -> [`report::RunReport`].
 //!
-//! Stages 4 and 5 run together in the [`executor`]: chunks of returns in parallel, written in
+//! Stages 4 and 5 run together in the `executor`: chunks of returns in parallel, written in
 //! input order by one writer thread (the output bytes do not depend on the thread count).
 //! docs/pipeline.md documents the stages and every option.
 
@@ -66,7 +66,7 @@ impl Default for RunOptions {
 }
 
 /// Runs a loaded pipeline: every stage after load; the LAS output(s) and the run report (at
-/// [`config::OutputConfig::report_path`]) are published as one set ([`publish`]) when every
+/// [`config::OutputConfig::report_path`]) are published as one set (`publish`) when every
 /// stage succeeded; gives the report.
 pub fn run(p: &LoadedPipeline, opts: &RunOptions) -> crate::Result<RunReport> {
     let threads = opts

@@ -7,7 +7,7 @@
 //! high-intensity cluster near the profile where the approximate clock puts each crossing;
 //! (3) the paper's regression `t_c = t0 + T (n_i + f(beta_i))` with leave-one-out outlier
 //! rejection and re-association of clusters with the fitted clock; (4) optionally the refined
-//! estimator ([`refined`]) using every return on the targets' surveyed planes, jointly with
+//! estimator (`refined`) using every return on the targets' surveyed planes, jointly with
 //! the attitude latency when the platform's rotation makes it observable; (5) with hardware
 //! (PPS) profile tags, a comparison of both. docs/sync.md gives the method and an example.
 //!

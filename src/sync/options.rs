@@ -62,7 +62,7 @@ impl SyncTarget {
     }
 }
 
-/// Settings of [`estimate`].
+/// Settings of [`super::estimate`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct SyncOptions {
     /// Approximate t0 (s): where detection looks.

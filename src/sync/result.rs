@@ -123,7 +123,7 @@ pub struct RefinedEstimate {
     pub returns_used: usize,
 }
 
-/// Result of [`estimate`]: the answer (per `method`) and everything behind it.
+/// Result of [`super::estimate`]: the answer (per `method`) and everything behind it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SyncResult {
     /// Method of the answer.

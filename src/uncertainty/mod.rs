@@ -2,7 +2,7 @@
 //!
 //! - [`model`]: the georeferencing equation as a function of the 18 error inputs, exact and
 //!   linearised (analytic Jacobian).
-//! - [`propagate`]: `Sigma = J Q J^T` per return along the map axes, 95% figures and per-group
+//! - [`mod@propagate`]: `Sigma = J Q J^T` per return along the map axes, 95% figures and per-group
 //!   variance shares.
 //! - [`sobol`]: Saltelli sampling, Saltelli-2010 first-order and Jansen total-effect
 //!   estimators with bootstrap intervals, on the exact model.

@@ -63,7 +63,7 @@ impl UncertaintyInputs {
 pub struct PointCovariance {
     /// 3x3 covariance along the map X, Y, Z axes (m^2).
     pub cov_m2: Matrix3<f64>,
-    /// Each group's variance `trace(J_g Q_g J_g^T)` (m^2), [`Group`] order; they sum to
+    /// Each group's variance `trace(J_g Q_g J_g^T)` (m^2), [`crate::uncertainty::Group`] order; they sum to
     /// `trace(cov_m2)` (the inputs are independent).
     pub group_variance_m2: [f64; N_GROUPS],
 }

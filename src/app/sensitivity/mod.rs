@@ -10,8 +10,8 @@
 //! East, North, Up at the point, and their variance-weighted combination ("total").
 //!
 //! An application command: it combines the uncertainty model with the simulator (for
-//! `[scenario]` studies). Submodules: [`config`] (the study file), [`points`] (the points
-//! studied and their sigmas), [`tables`] (CSV tables and plots).
+//! `[scenario]` studies). Submodules: `config` (the study file), `points` (the points
+//! studied and their sigmas), `tables` (CSV tables and plots).
 
 pub(crate) mod config;
 pub(crate) mod points;

@@ -28,7 +28,7 @@ pub struct BoresightFiles {
     #[serde(default)]
     pub centres: Option<ConfigPath>,
     /// Raw static scan returns `site,beta_rad,range_m,intensity` (`alpha0 = 0`); the centres
-    /// are fitted ([`super::ellipse`]; needs `tripod.leg_radius_m`, `scanner.sigma_range_m`).
+    /// are fitted ([`crate::calib::ellipse`]; needs `tripod.leg_radius_m`, `scanner.sigma_range_m`).
     #[serde(default)]
     pub scans: Option<ConfigPath>,
     /// Site attitudes `site,roll_deg,pitch_deg,heading_deg,sigma_roll_deg,sigma_pitch_deg,sigma_heading_deg`.

@@ -1,7 +1,7 @@
 //! Tripod boresight calibration (paper 002, sections 4.2 and 5).
 //!
 //! Model. At site `k` the IMU attitude is `R_k = R_b^n` and the scanner sees the static tripod's
-//! unit leg directions `u_ki` (frame `s`, [`super::tripod`]). The legs are fixed in NED, so
+//! unit leg directions `u_ki` (frame `s`, `calib::tripod`). The legs are fixed in NED, so
 //! `R_k R_s^b u_ki = w_i` for all sites (paper: "foot vectors invariant"; unit vectors, because
 //! the cut moves along the legs from site to site). The boresight is parametrised as
 //! `R_s^b = Rz(dz) Ry(dy) Rx(dx) * R_nom`: a misalignment `d = (dx, dy, dz)` (rad) about the body
