@@ -51,13 +51,8 @@ impl Frame {
     }
     /// Scene ENU point to ECEF.
     #[inline]
-    pub fn to_ecef(&self, p: &Vector3<f64>) -> Vector3<f64> {
+    pub fn to_ecef(self, p: &Vector3<f64>) -> Vector3<f64> {
         self.origin_e + self.r_enu_to_e * p
-    }
-    /// ECEF point to scene ENU.
-    #[inline]
-    pub fn to_enu(&self, x_e: &Vector3<f64>) -> Vector3<f64> {
-        self.r_enu_to_e.tr_mul(&(x_e - self.origin_e))
     }
 }
 
@@ -110,11 +105,6 @@ impl TruthGen {
     /// Index of the next sample.
     pub fn next_index(&self) -> u64 {
         self.k
-    }
-
-    /// The route driven.
-    pub fn route(&self) -> &Route {
-        &self.route
     }
 
     /// Next true sample.

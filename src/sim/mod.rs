@@ -9,15 +9,15 @@
 //! thread count.
 
 mod checker;
-pub mod dynamics;
+pub(crate) mod dynamics;
 pub(crate) mod effects;
 pub(crate) mod nav;
 mod outputs;
 pub(crate) mod route;
 pub(crate) mod scanner;
 pub mod scenario;
-pub mod scene;
-pub mod world;
+pub(crate) mod scene;
+pub(crate) mod world;
 
 pub use effects::Effects;
 pub use outputs::{read_truth_points, TRUTH_HEADER_BYTES, TRUTH_MAGIC, TRUTH_RECORD_BYTES};
@@ -176,7 +176,7 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
             .chain([files::TRUTH_JSON.into()])
             .collect(),
     };
-    outputs::write_truth_json(sc, &model, &route, &nav_counts, &summary, out_dir)?;
+    outputs::write_truth_json(sc, &world, &model, &route, &nav_counts, &summary, out_dir)?;
     Ok(summary)
 }
 

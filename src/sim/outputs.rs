@@ -212,9 +212,10 @@ fn patch(
 }
 
 /// Writes `truth.json`: configured sensor (what to give the pipeline), true sensor, clock,
-/// injected effects, navigation error statistics, files and counts.
+/// injected effects, navigation error statistics, the sync targets' faces, files and counts.
 pub(crate) fn write_truth_json(
     sc: &Scenario,
+    world: &World,
     m: &ScannerModel,
     route: &Route,
     nav: &NavCounts,
@@ -277,6 +278,7 @@ pub(crate) fn write_truth_json(
             "outage_drift_mps": fx.outage_drift_mps,
         },
         "route": { "lap_length_m": route.length_m(), "lap_duration_s": route.lap_s() },
+        "sync_targets": world.sync_faces(),
         "counts": {
             "sbet_records": nav.sbet_records,
             "smrmsg_records": nav.smrmsg_records,

@@ -12,8 +12,6 @@ use nalgebra::{Matrix3, Vector3};
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Class {
-    /// The ground plane (road surface).
-    Ground,
     /// Raised sidewalk slab (kerbs are its edges).
     Sidewalk,
     /// Building.

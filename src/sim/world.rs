@@ -34,6 +34,41 @@ struct Builder<'a> {
     landmarks: Vec<Landmark>,
 }
 
+/// A sync target's plate as a surveyor would measure it (`truth.json` `sync_targets`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SyncFace {
+    /// Landmark id (as in the control-point file).
+    pub id: String,
+    /// Unit face normal (scene ENU), the plate's local y axis.
+    pub normal_enu: [f64; 3],
+    /// Half width and half height of the face (m).
+    pub half_size_m: [f64; 2],
+}
+
+impl World {
+    /// The plate of every sync-target landmark (the box whose face centre is the landmark).
+    pub fn sync_faces(&self) -> Vec<SyncFace> {
+        let plate_of = |l: &Landmark| {
+            self.scene.objects.iter().find_map(|ob| match ob.shape {
+                Shape::Box {
+                    centre,
+                    r_l_to_enu,
+                    half_m,
+                } if ob.class == Class::SyncTarget && (centre - l.enu).norm() < 0.05 => {
+                    let n = r_l_to_enu.column(1);
+                    Some(SyncFace {
+                        id: l.id.clone(),
+                        normal_enu: [n.x, n.y, n.z],
+                        half_size_m: [half_m.x, half_m.z],
+                    })
+                }
+                _ => None,
+            })
+        };
+        self.landmarks.iter().filter_map(plate_of).collect()
+    }
+}
+
 /// Generates the world of `cfg`, deterministically from `seed`.
 pub fn build(cfg: &SceneCfg, seed: u64) -> World {
     let mut b = Builder {
@@ -66,7 +101,7 @@ impl Builder<'_> {
     fn push(&mut self, shape: Shape, class: Class) {
         let r = &self.cfg.reflectance;
         let (reflectance, porosity) = match class {
-            Class::Ground | Class::Sidewalk => (r[0], 0.0),
+            Class::Sidewalk => (r[0], 0.0),
             Class::Building | Class::Car => (r[1], 0.0),
             Class::Pole => (r[2], 0.0),
             Class::Sphere => (r[3], 0.0),

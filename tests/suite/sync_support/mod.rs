@@ -4,11 +4,10 @@
 
 use crate::sim_support;
 
+use kinescan::geo::ellipsoid::r_enu_to_e;
 use kinescan::georef::Sensor;
 use kinescan::io::points::read_control_points;
 use kinescan::io::profiles::ProfileFile;
-use kinescan::sim::dynamics::Frame;
-use kinescan::sim::scene::{Class, Shape};
 use kinescan::sim::{simulate_scenario, Scenario, SimOptions};
 use kinescan::sync::{SyncOptions, SyncTarget};
 use kinescan::timing::ScannerClock;
@@ -59,25 +58,21 @@ pub fn survey(sc: &Scenario, dir: &Path) -> Survey {
     let file = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
     let cps = read_control_points(&dir.join("control_points.csv")).unwrap();
     let mut targets = SyncTarget::from_surveys(&cps, &[]);
-    let world = kinescan::sim::world::build(&sc.scene, sc.seed);
-    let o = &sc.origin;
-    let frame = Frame::new(o.lat_deg.to_radians(), o.lon_deg.to_radians(), o.h_m);
-    for (t, l) in targets.iter_mut().zip(&world.landmarks) {
-        assert_eq!(t.id, l.id);
-        let plate = world.scene.objects.iter().find_map(|ob| match ob.shape {
-            Shape::Box {
-                centre, r_l_to_enu, ..
-            } if ob.class == Class::SyncTarget && (centre - l.enu).norm() < 0.05 => {
-                Some(r_l_to_enu.column(1).into_owned())
-            }
-            _ => None,
-        });
-        t.normal_e = plate.map(|n| frame.r_enu_to_e * n);
-        t.half_size_m = Some([0.25, 0.25]);
-    }
-    let (sensor, clock) = sim_support::configured(dir);
     let j: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("truth.json")).unwrap()).unwrap();
+    let o = &sc.origin;
+    let r_enu_to_e = r_enu_to_e(o.lat_deg.to_radians(), o.lon_deg.to_radians());
+    let faces = j["sync_targets"].as_array().unwrap();
+    assert!(!faces.is_empty(), "the scenario has sync targets");
+    for face in faces {
+        let id = face["id"].as_str().unwrap();
+        let t = targets.iter_mut().find(|t| t.id == id).unwrap();
+        let v = |key: &str, k: usize| face[key][k].as_f64().unwrap();
+        let n = nalgebra::Vector3::new(v("normal_enu", 0), v("normal_enu", 1), v("normal_enu", 2));
+        t.normal_e = Some(r_enu_to_e * n);
+        t.half_size_m = Some([v("half_size_m", 0), v("half_size_m", 1)]);
+    }
+    let (sensor, clock) = sim_support::configured(dir);
     Survey {
         traj,
         file,
