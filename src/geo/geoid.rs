@@ -15,6 +15,7 @@
 
 use std::path::{Path, PathBuf};
 
+use super::ellipsoid::{WGS84_A, WGS84_E2};
 use crate::{Error, Result};
 
 /// Value GTX files use for "no data".
@@ -153,6 +154,23 @@ impl GeoidGrid {
         &self.name
     }
 
+    /// OGC WKT1 of the compound CRS: the horizontal CRS `horizontal_wkt` (named
+    /// `horizontal_name`) with heights above this grid's geoid (a `VERT_CS` named after the
+    /// grid file, orthometric datum type 2005, metres, up).
+    pub fn compound_wkt(&self, horizontal_name: &str, horizontal_wkt: &str) -> String {
+        let grid = self.name.replace('"', "'");
+        format!(
+            concat!(
+                r#"COMPD_CS["{h} + {g} height",{hw},VERT_CS["{g} height","#,
+                r#"VERT_DATUM["{g}",2005],UNIT["metre",1,AUTHORITY["EPSG","9001"]],"#,
+                r#"AXIS["Gravity-related height",UP]]]"#
+            ),
+            h = horizontal_name,
+            g = grid,
+            hw = horizontal_wkt
+        )
+    }
+
     /// The grid's path.
     pub fn path(&self) -> &Path {
         &self.path
@@ -166,6 +184,26 @@ impl GeoidGrid {
             west_deg: self.west_deg,
             east_deg: self.west_deg + self.dlon_deg * (self.cols - 1) as f64,
         }
+    }
+
+    /// Whether the grid has nodes around every point within `margin_m` (horizontal distance)
+    /// of latitude and longitude (rad). Conservative: the margin is turned into degrees with
+    /// the smallest radii of curvature (meridian `a (1 - e^2)`, parallel `a cos(lat)`).
+    pub fn covers_around(&self, lat_rad: f64, lon_rad: f64, margin_m: f64) -> bool {
+        let e = self.extent();
+        let lat_deg = lat_rad.to_degrees();
+        let dlat_deg = (margin_m / (WGS84_A * (1.0 - WGS84_E2))).to_degrees();
+        if !(lat_deg - dlat_deg >= e.south_deg && lat_deg + dlat_deg <= e.north_deg) {
+            return false;
+        }
+        if self.wraps() {
+            return true;
+        }
+        let widest_lat_rad = (lat_deg.abs() + dlat_deg).min(90.0).to_radians();
+        let dlon_deg = (margin_m / (WGS84_A * widest_lat_rad.cos())).to_degrees();
+        let from_west_deg =
+            (lon_rad.to_degrees() - dlon_deg - e.west_deg).rem_euclid(FULL_CIRCLE_DEG);
+        from_west_deg + 2.0 * dlon_deg <= e.east_deg - e.west_deg
     }
 
     fn wraps(&self) -> bool {
@@ -240,5 +278,23 @@ mod tests {
         assert_eq!(n(9.99, 20.1), None);
         assert_eq!(n(10.1, 20.51), None);
         assert!(GeoidGrid::from_gtx(Path::new("t.gtx"), &gtx(2, 3, &values[..5])).is_err());
+    }
+
+    #[test]
+    fn coverage_with_a_margin() {
+        // Nodes over 10..10.5 N, 20..20.5 E.
+        let g = GeoidGrid::from_gtx(Path::new("t.gtx"), &gtx(2, 3, &[0.0; 6])).unwrap();
+        let covers =
+            |lat: f64, lon: f64, m: f64| g.covers_around(lat.to_radians(), lon.to_radians(), m);
+        assert!(covers(10.25, 20.25, 0.0));
+        // 0.25 deg of latitude is 27.6 km; of longitude at 10.25 N about 27.4 km.
+        assert!(covers(10.25, 20.25, 27_000.0));
+        assert!(!covers(10.25, 20.25, 28_000.0));
+        assert!(
+            !covers(10.25, 20.49, 2_000.0),
+            "east edge within the margin"
+        );
+        assert!(!covers(10.25, 20.51, 0.0));
+        assert!(!covers(10.25, 19.25, 0.0));
     }
 }

@@ -39,7 +39,7 @@ pub fn per_input_part(las: &Path, stem: &str, profile: &Path) -> PathBuf {
 }
 
 /// Every input of a pipeline: the pipeline file, trajectory, accuracy, profile, sync point and
-/// target files, diagnosis reference patches.
+/// target files, geoid grid, diagnosis reference patches.
 pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
     let c = &p.config;
     let mut v = vec![
@@ -57,6 +57,9 @@ pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
         if let Some(t) = &sy.targets {
             v.push(("sync.targets".into(), t.to_path_buf()));
         }
+    }
+    if let Some(g) = &c.output.geoid {
+        v.push(("output.geoid".into(), g.to_path_buf()));
     }
     if let Some(patches) = c.diagnose.as_ref().and_then(|d| d.patches.as_ref()) {
         v.push(("diagnose.patches".into(), patches.to_path_buf()));

@@ -18,7 +18,8 @@
 use super::config::{SensorConfig, UncertaintyConfig};
 use super::report::RejectReason;
 use super::sync::ResolvedClock;
-use crate::geo::local::LocalProjection;
+use crate::geo::geoid::GeoidGrid;
+use crate::geo::local::{LocalLatLon, LocalProjection};
 use crate::geo::projection::MapFrame;
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::profiles::{ProfileColumns, RawReturn};
@@ -93,30 +94,50 @@ impl ReturnFilter {
 const RECENTRE_M: f64 = 100.0;
 
 /// The map projection expanded about the vehicle ([`LocalProjection`]), re-expanded when the
-/// vehicle has moved [`RECENTRE_M`] from the expansion centre. One per thread.
+/// vehicle has moved [`RECENTRE_M`] from the expansion centre; with a geoid grid, Z becomes the
+/// orthometric height `h - N`, `N` interpolated at the point's latitude and longitude (expanded
+/// about the same centre: [`LocalLatLon`]). One per thread.
 #[derive(Debug, Clone)]
-pub struct MapProjector {
+pub struct MapProjector<'a> {
     frame: MapFrame,
-    local: Option<LocalProjection>,
+    geoid: Option<&'a GeoidGrid>,
+    local: Option<(LocalProjection, LocalLatLon)>,
 }
 
-impl MapProjector {
-    /// A projector to `frame`, expanded at the first use.
-    pub fn new(frame: MapFrame) -> Self {
-        MapProjector { frame, local: None }
+impl<'a> MapProjector<'a> {
+    /// A projector to `frame` (heights above `geoid` when given), expanded at the first use.
+    pub fn new(frame: MapFrame, geoid: Option<&'a GeoidGrid>) -> Self {
+        MapProjector {
+            frame,
+            geoid,
+            local: None,
+        }
     }
 
-    /// Map coordinates (m) of ECEF `x_e_m` seen from the vehicle at ECEF `vehicle_e_m`.
+    /// Map coordinates (m) of ECEF `x_e_m` seen from the vehicle at ECEF `vehicle_e_m`; a
+    /// point where the geoid grid has no value (a no-data node) is rejected.
     #[inline]
-    pub fn to_map(&mut self, vehicle_e_m: &Vector3<f64>, x_e_m: &Vector3<f64>) -> Vector3<f64> {
-        let stale = self
-            .local
-            .as_ref()
-            .is_none_or(|l| (l.centre_e() - vehicle_e_m).norm_squared() > RECENTRE_M * RECENTRE_M);
+    pub fn to_map(
+        &mut self,
+        vehicle_e_m: &Vector3<f64>,
+        x_e_m: &Vector3<f64>,
+    ) -> Result<Vector3<f64>, RejectReason> {
+        let stale = self.local.as_ref().is_none_or(|(l, _)| {
+            (l.centre_e() - vehicle_e_m).norm_squared() > RECENTRE_M * RECENTRE_M
+        });
         if stale {
-            self.local = Some(LocalProjection::new(self.frame, *vehicle_e_m));
+            let projection = LocalProjection::new(self.frame, *vehicle_e_m);
+            self.local = Some((projection, LocalLatLon::new(*vehicle_e_m)));
         }
-        self.local.as_ref().expect("set above").ecef_to_map(x_e_m)
+        let (projection, lat_lon) = self.local.as_ref().expect("set above");
+        let mut x_map_m = projection.ecef_to_map(x_e_m);
+        if let Some(grid) = self.geoid {
+            let (lat_rad, lon_rad) = lat_lon.lat_lon_rad(x_e_m);
+            x_map_m.z -= grid
+                .undulation_m(lat_rad, lon_rad)
+                .ok_or(RejectReason::NoGeoidValue)?;
+        }
+        Ok(x_map_m)
     }
 }
 
@@ -124,7 +145,7 @@ impl MapProjector {
 /// (returns given in time order are fastest).
 pub struct ReturnCursors<'a> {
     poses: PoseCursor<'a>,
-    projector: MapProjector,
+    projector: MapProjector<'a>,
     /// SMRMSG sigmas and the uncertainty's frame cache (with `[uncertainty]`).
     sigmas: Option<(SigmaCursor<'a>, FrameCache)>,
 }
@@ -146,7 +167,7 @@ pub struct GeoreferencedReturn {
     pub terms: ReturnTerms,
     /// ECEF point (m).
     pub x_e_m: Vector3<f64>,
-    /// Map point (m) in the output frame.
+    /// Map point (m) in the output frame; Z orthometric with a geoid grid.
     pub x_map_m: Vector3<f64>,
 }
 
@@ -158,6 +179,7 @@ pub struct ReturnGeoreferencer<'a> {
     clock: ResolvedClock,
     sensor: Sensor,
     frame: MapFrame,
+    geoid: Option<&'a GeoidGrid>,
     propagator: Option<Propagator>,
 }
 
@@ -192,8 +214,15 @@ impl<'a> ReturnGeoreferencer<'a> {
             clock,
             sensor,
             frame,
+            geoid: None,
             propagator,
         }
+    }
+
+    /// Heights above the geoid of `grid` (`H = h - N`) instead of the ellipsoid.
+    pub fn with_geoid(mut self, grid: Option<&'a GeoidGrid>) -> Self {
+        self.geoid = grid;
+        self
     }
 
     /// Fresh cursors (one per thread or chunk of returns).
@@ -201,7 +230,7 @@ impl<'a> ReturnGeoreferencer<'a> {
         let c = &self.clock;
         ReturnCursors {
             poses: PoseCursor::new(self.traj, c.attitude_latency_s, c.position_latency_s),
-            projector: MapProjector::new(self.frame),
+            projector: MapProjector::new(self.frame, self.geoid),
             sigmas: self
                 .propagator
                 .as_ref()
@@ -236,7 +265,7 @@ impl<'a> ReturnGeoreferencer<'a> {
         };
         let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, alpha_rad, r.beta_rad);
         let x_e_m = terms.point_e(&pose.nav.r_e_m);
-        let x_map_m = cursors.projector.to_map(&pose.nav.r_e_m, &x_e_m);
+        let x_map_m = cursors.projector.to_map(&pose.nav.r_e_m, &x_e_m)?;
         Ok(GeoreferencedReturn {
             t_s,
             dt_dclock,

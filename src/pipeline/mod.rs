@@ -113,7 +113,8 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
 
     let started = Instant::now();
     let schema = OutputSchema::new(c);
-    let settings = SinkSettings::new(c, &schema, &prepared.frame, &prepared.traj)?;
+    let geoid = prepared.geoid.as_ref();
+    let settings = SinkSettings::new(c, &schema, &prepared.frame, geoid, &prepared.traj)?;
     let mut sink = LasSink::new(settings);
     let total = prepared.inputs.iter().map(|i| i.file.len() as u64).sum();
     let bar = progress_bar(opts.progress, total);
@@ -126,7 +127,8 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
             *clock,
             prepared.frame,
             c.uncertainty.as_ref(),
-        );
+        )
+        .with_geoid(geoid);
         let fill = schema.fill(input.point_source_id);
         sink.start_input(&input.original)?;
         let strictness = c.output.strictness;
@@ -159,6 +161,7 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
         parameters: c.clone(),
         frame: prepared.frame.to_string(),
         epsg: prepared.frame.epsg(),
+        geoid_grid: geoid.map(|g| g.name().to_string()),
         trajectory_span_s: prepared.traj.span_s(),
         inputs,
         totals: totals.clone(),

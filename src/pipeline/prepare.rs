@@ -4,6 +4,7 @@
 //! (removed when the [`Prepared`] value is dropped).
 
 use super::config::{FrameConfig, LoadedPipeline, PipelineConfig};
+use crate::geo::geoid::GeoidGrid;
 use crate::geo::projection::MapFrame;
 use crate::io::digest::FileRecord;
 use crate::io::profiles::ProfileFile;
@@ -33,6 +34,8 @@ pub struct Prepared {
     pub traj: Trajectory,
     /// The output mapping frame.
     pub frame: MapFrame,
+    /// The geoid grid of `output.geoid` (orthometric heights), checked to cover the survey.
+    pub geoid: Option<GeoidGrid>,
     /// The profile files, in pipeline order.
     pub inputs: Vec<PreparedInput>,
     /// The pipeline, trajectory and accuracy files, hashed for the report.
@@ -56,6 +59,10 @@ pub fn run(p: &LoadedPipeline) -> Result<Prepared> {
     }
     let frame = map_frame(&c.output.frame, &traj)?;
     check_frame_near_data(p, &frame, &traj)?;
+    let geoid = open_geoid(p, &traj)?;
+    if let Some(g) = &c.output.geoid {
+        files.push(FileRecord::of("geoid", g)?);
+    }
     let out_dir = c
         .output
         .las
@@ -68,6 +75,7 @@ pub fn run(p: &LoadedPipeline) -> Result<Prepared> {
     Ok(Prepared {
         traj,
         frame,
+        geoid,
         inputs,
         files,
         out_dir,
@@ -82,6 +90,7 @@ pub fn check_inputs(p: &LoadedPipeline) -> Result<()> {
     let traj = open_trajectory(c)?;
     let frame = map_frame(&c.output.frame, &traj)?;
     check_frame_near_data(p, &frame, &traj)?;
+    open_geoid(p, &traj)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     open_profiles(c, staging.path())?;
     Ok(())
@@ -113,6 +122,44 @@ pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
         FrameConfig::Enu { .. } => MapFrame::local_enu(f.enu_origin().expect("enu")),
         FrameConfig::Epsg { code } => MapFrame::from_epsg(code),
     }
+}
+
+/// Opens the grid of `output.geoid` and checks that it has nodes under every point the
+/// scanner can reach from every trajectory record (the range limit plus the range offset and
+/// the lever arm), so no point falls outside it; errors name the key and the file.
+fn open_geoid(p: &LoadedPipeline, traj: &Trajectory) -> Result<Option<GeoidGrid>> {
+    let Some(path) = &p.config.output.geoid else {
+        return Ok(None);
+    };
+    let source = p.path.display().to_string();
+    let refuse = |problem: String| Error::config(&source, "output.geoid", problem);
+    let grid = GeoidGrid::open(path).map_err(|e| refuse(e.to_string()))?;
+    let s = &p.config.sensor;
+    let reach_m = s.max_range_m * (1.0 + s.range_scale_ppm.abs() * 1e-6)
+        + s.range_zero_m.abs()
+        + nalgebra::Vector3::from(s.lever_arm_b_m).norm();
+    let sbet = traj.sbet();
+    let outside = (0..sbet.len())
+        .map(|i| sbet.record(i))
+        .find(|r| !grid.covers_around(r.lat_rad, r.lon_rad, reach_m));
+    if let Some(r) = outside {
+        let e = grid.extent();
+        return Err(refuse(format!(
+            "{}: the grid's nodes cover latitudes {} .. {} deg, longitudes {} .. {} deg, but \
+             points up to {reach_m:.0} m (sensor.max_range_m + range offset + lever arm) from \
+             the trajectory at t = {:.3} s (lat {:.6}, lon {:.6} deg) would fall outside it; \
+             use a grid that covers the survey",
+            path.display(),
+            e.south_deg,
+            e.north_deg,
+            e.west_deg,
+            e.east_deg,
+            r.time_s,
+            r.lat_rad.to_degrees(),
+            r.lon_rad.to_degrees()
+        )));
+    }
+    Ok(Some(grid))
 }
 
 /// Maps binary profile files; CSV files are first imported into `staging`. A file that lacks

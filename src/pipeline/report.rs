@@ -27,17 +27,20 @@ pub enum RejectReason {
     TrajectoryGap,
     /// Return time outside the SMRMSG span (uncertainty requested).
     OutsideAccuracy,
+    /// The geoid grid (`output.geoid`) has no value at the point (a no-data node).
+    NoGeoidValue,
 }
 
 impl RejectReason {
     /// Every reason, in report order.
-    pub const ALL: [RejectReason; 6] = [
+    pub const ALL: [RejectReason; 7] = [
         RejectReason::MissingReturn,
         RejectReason::NonFinite,
         RejectReason::RangeOutOfLimits,
         RejectReason::OutsideTrajectory,
         RejectReason::TrajectoryGap,
         RejectReason::OutsideAccuracy,
+        RejectReason::NoGeoidValue,
     ];
 
     /// Position in [`Self::ALL`].
@@ -57,6 +60,7 @@ impl RejectReason {
                 "return time inside a trajectory gap longer than trajectory.max_gap_s"
             }
             RejectReason::OutsideAccuracy => "return time outside the SMRMSG span",
+            RejectReason::NoGeoidValue => "no geoid undulation at the point (output.geoid)",
         }
     }
 }
@@ -163,6 +167,9 @@ pub struct RunReport {
     pub frame: String,
     /// EPSG code of the output CRS, if any.
     pub epsg: Option<u32>,
+    /// The geoid grid's file name when heights are orthometric (`output.geoid`); `None`:
+    /// WGS84 ellipsoidal heights.
+    pub geoid_grid: Option<String>,
     /// Trajectory span (s of week).
     pub trajectory_span_s: (f64, f64),
     /// Per profile file.

@@ -6,6 +6,7 @@ use super::config::{PipelineConfig, SplitMode};
 use super::files::{numbered_part, per_input_part};
 use super::schema::OutputSchema;
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
+use crate::geo::geoid::GeoidGrid;
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
     encode_points, stats_of_records, ChunkStats, GpsTimeConvention, LasPoint, LasSummary,
@@ -27,11 +28,13 @@ pub struct SinkSettings {
 
 impl SinkSettings {
     /// Settings from the pipeline: scale, offset (map coordinates of the first trajectory
-    /// record, rounded to 1 km), GPS time convention, the schema's extra dimensions, CRS.
+    /// record, rounded to 1 km), GPS time convention, the schema's extra dimensions, CRS
+    /// (compound with the geoid's heights when given).
     pub fn new(
         c: &PipelineConfig,
         schema: &OutputSchema,
         frame: &MapFrame,
+        geoid: Option<&GeoidGrid>,
         traj: &Trajectory,
     ) -> Result<Self> {
         let first = traj.sbet().record(0);
@@ -40,7 +43,10 @@ impl SinkSettings {
             lon_rad: first.lon_rad,
             h_m: first.alt_m,
         };
-        let origin = frame.ecef_to_map(&geodetic_to_ecef(g));
+        let mut origin = frame.ecef_to_map(&geodetic_to_ecef(g));
+        origin.z -= geoid
+            .and_then(|grid| grid.undulation_m(g.lat_rad, g.lon_rad))
+            .unwrap_or(0.0);
         let offset = c
             .output
             .offset_m
@@ -54,7 +60,10 @@ impl SinkSettings {
         let (day, year) = creation_date(c.inputs.gps_week, first.time_s);
         let config = LasWriterConfig {
             layout,
-            wkt: frame.wkt(),
+            wkt: match geoid {
+                Some(grid) => grid.compound_wkt(&frame.to_string(), &frame.wkt()),
+                None => frame.wkt(),
+            },
             system_identifier: "kinescan mobile laser scanning".into(),
             file_source_id: 0,
             creation_day_of_year: day,

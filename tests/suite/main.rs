@@ -20,6 +20,7 @@ mod fuzz;
 mod geodesy;
 mod geodesy_local;
 mod geoid;
+mod geoid_pipeline;
 mod io_atomic;
 mod io_bad_input;
 mod io_info;

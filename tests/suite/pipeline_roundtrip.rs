@@ -77,9 +77,10 @@ fn invert(cur: &mut PoseCursor, n: u32, x_e: &Vector3<f64>) -> Option<RawReturn>
     None
 }
 
+/// Known ECEF points (`truth_e`, in profile order) and a pipeline writing `out/cloud.las`.
 pub(crate) struct Fixture {
     pub(crate) dir: tempfile::TempDir,
-    truth_e: Vec<Vector3<f64>>,
+    pub(crate) truth_e: Vec<Vector3<f64>>,
 }
 
 /// Known points around the trajectory, inverted into a binary profile file with an alpha
@@ -165,7 +166,7 @@ frame = {{ kind = "utm" }}
     path
 }
 
-fn read_las(path: &Path) -> Vec<las::Point> {
+pub(crate) fn read_las(path: &Path) -> Vec<las::Point> {
     let mut reader = las::Reader::from_path(path).unwrap();
     reader
         .read_all()

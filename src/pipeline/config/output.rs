@@ -89,6 +89,10 @@ pub struct OutputConfig {
     /// Mapping frame.
     #[serde(default = "default_frame")]
     pub frame: FrameConfig,
+    /// Geoid grid (GTX or GeoTIFF, as PROJ ships them) for orthometric heights `H = h - N`;
+    /// absent: WGS84 ellipsoidal heights. Needs a frame with a height axis (`utm`, `epsg`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geoid: Option<ConfigPath>,
     /// Coordinate scale (m per integer step); the quantisation error is half of it.
     #[serde(default = "default_scale_m")]
     pub scale_m: f64,
@@ -132,6 +136,12 @@ impl OutputConfig {
         if self.split == SplitMode::MaxPoints && self.max_points_per_file.is_none_or(|n| n == 0) {
             let problem = "split = \"max_points\" needs max_points_per_file > 0";
             return Err(("output.max_points_per_file", problem.into()));
+        }
+        if self.geoid.is_some() && matches!(self.frame, FrameConfig::Ecef | FrameConfig::Enu { .. })
+        {
+            let problem = "orthometric heights need a frame whose Z is a height above the \
+                           ellipsoid: frame kind \"utm\" or \"epsg\" (ECEF Z and local Up are not)";
+            return Err(("output.geoid", problem.into()));
         }
         self.frame.check()
     }
