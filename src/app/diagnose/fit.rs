@@ -1,14 +1,13 @@
-//! Generalised least squares under the residual model of [`super::model`]. The returns of one
-//! visit share a navigation error `z_v ~ N(0, P_v)`; with correlation times
-//! ([`ObservationSet::nav_tau_s`]) the errors of visits close in time are correlated too
-//! (first-order Gauss-Markov: `Cov(z_v,k, z_w,k) = exp(-|t_v - t_w| / tau_k) s_v,k s_w,k`,
-//! `s = sqrt(diag P)`), and visits form blocks (consecutive visits less than 5 tau apart, at most
-//! [`MAX_BLOCK_VISITS`]). The covariance of a block is `C = D + G Sigma G^T`, inverted by
-//! Woodbury with `Sigma = L L^T`: `C^-1 = D^-1 - D^-1 G L (I + L^T G^T D^-1 G L)^-1 L^T G^T D^-1`.
-//! Every product `X^T C^-1 X` needs only per-visit sums (`X^T D^-1 X`, `G^T D^-1 X`,
-//! `G^T D^-1 G`: O(n p^2) in all) and one `6V x 6V` problem per block of `V` visits; never
-//! O(n^2).
+//! Generalised least squares under the residual model of [`super::model`]. Without
+//! correlation times the returns of one visit share a navigation error `z_v ~ N(0, P_v)` and
+//! visits are independent: the covariance of a visit is `C = D + G P_v G^T`, inverted by
+//! Woodbury with `P_v = L L^T`: `C^-1 = D^-1 - D^-1 G L (I + L^T G^T D^-1 G L)^-1 L^T G^T D^-1`,
+//! so every product `X^T C^-1 X` needs only per-visit sums (`X^T D^-1 X`, `G^T D^-1 X`,
+//! `G^T D^-1 G`: O(n p^2) in all), never O(n^2). With correlation times
+//! ([`ObservationSet::nav_tau_s`]) the navigation errors are Gauss-Markov processes in time,
+//! within and between visits: [`super::continuous`].
 
+use super::continuous;
 use super::model::{signature_index, Effect, Observation, ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen};
@@ -19,14 +18,6 @@ use rayon::prelude::*;
 
 /// One design row, sparse: `(column, value)` entries, each column at most once.
 pub(crate) type RowFn<'a> = dyn Fn(&Observation, &mut Vec<(usize, f64)>) + Sync + 'a;
-
-/// Most visits in one correlated block (a longer chain is cut: the correlation across a cut is
-/// dropped, which keeps each block's `6V x 6V` problem small).
-pub const MAX_BLOCK_VISITS: usize = 64;
-
-/// Visits further apart than this many correlation times are treated as independent
-/// (correlation below e^-5 = 0.007).
-const INDEPENDENT_TAUS: f64 = 5.0;
 
 /// Per-visit sums on the columns its rows touch: `X^T D^-1 X`, `G^T D^-1 X`, `G^T D^-1 G`.
 struct VisitStats {
@@ -80,69 +71,7 @@ fn visit_stats(set: &ObservationSet, members: &[usize], p: usize, row: &RowFn) -
     VisitStats { columns, a, b, k }
 }
 
-/// Mid time of each visit (mean return time, s).
-fn visit_times(set: &ObservationSet) -> Vec<f64> {
-    let mut sum = vec![0.0; set.visits.len()];
-    let mut n = vec![0usize; set.visits.len()];
-    for o in &set.observations {
-        sum[o.visit] += o.covariates.time_s;
-        n[o.visit] += 1;
-    }
-    sum.iter()
-        .zip(&n)
-        .map(|(s, &n)| s / n.max(1) as f64)
-        .collect()
-}
-
-/// The correlated blocks of the visits in `visits` (time order inside a block).
-fn blocks(set: &ObservationSet, visits: Vec<usize>, times: &[f64]) -> Vec<Vec<usize>> {
-    let Some(tau) = set.nav_tau_s else {
-        return visits.into_iter().map(|v| vec![v]).collect();
-    };
-    let gap = INDEPENDENT_TAUS * tau[0].max(tau[1]);
-    let mut sorted = visits;
-    sorted.sort_by(|&a, &b| times[a].total_cmp(&times[b]).then(a.cmp(&b)));
-    let mut out: Vec<Vec<usize>> = Vec::new();
-    for v in sorted {
-        match out.last_mut() {
-            Some(last)
-                if last.len() < MAX_BLOCK_VISITS
-                    && times[v] - times[*last.last().expect("blocks are never empty")] <= gap =>
-            {
-                last.push(v)
-            }
-            _ => out.push(vec![v]),
-        }
-    }
-    out
-}
-
-/// `Sigma` of a block: `P_v` on the diagonal blocks, Gauss-Markov correlations between visits.
-fn block_cov(set: &ObservationSet, block: &[usize], times: &[f64]) -> DMatrix<f64> {
-    let n = 6 * block.len();
-    let mut s = DMatrix::zeros(n, n);
-    for (i, &v) in block.iter().enumerate() {
-        let pv = &set.visits[v].nav_cov;
-        for k in 0..6 {
-            for l in 0..6 {
-                s[(6 * i + k, 6 * i + l)] = 0.5 * (pv[k][l] + pv[l][k]);
-            }
-        }
-        let Some(tau) = set.nav_tau_s else { continue };
-        for (j, &w) in block.iter().enumerate().skip(i + 1) {
-            let pw = &set.visits[w].nav_cov;
-            let dt = (times[v] - times[w]).abs();
-            for k in 0..6 {
-                let c = (-dt / tau[k / 3]).exp() * (pv[k][k].max(0.0) * pw[k][k].max(0.0)).sqrt();
-                s[(6 * i + k, 6 * j + k)] = c;
-                s[(6 * j + k, 6 * i + k)] = c;
-            }
-        }
-    }
-    s
-}
-
-/// `X^T C^-1 X` of one block on the columns its rows touch.
+/// `X^T C^-1 X` of one visit on the columns its rows touch.
 pub(crate) struct BlockGram {
     /// Global column of each local row/column of `gram`.
     pub columns: Vec<usize>,
@@ -161,9 +90,8 @@ impl BlockGram {
     }
 }
 
-/// `L` with `Sigma = L L^T`: Cholesky after a jitter of 1e-12 of the largest variance (a
-/// block of visits close in time is nearly singular), else the eigen-decomposition with null
-/// directions dropped.
+/// `L` with `Sigma = L L^T`: Cholesky after a jitter of 1e-12 of the largest variance, else
+/// the eigen-decomposition with null directions dropped.
 fn sigma_sqrt(sigma: DMatrix<f64>) -> DMatrix<f64> {
     let n = sigma.nrows();
     let max = sigma.diagonal().max();
@@ -234,58 +162,40 @@ fn block_gram(stats: &[&VisitStats], sigma: DMatrix<f64>, p: usize) -> BlockGram
     BlockGram { columns, gram: a }
 }
 
-/// `X^T C^-1 X` of every correlated block of the visits on `refs` (computed in parallel,
-/// returned in a fixed order: sums are reproducible). Only the visits on `refs` enter a block:
-/// the result is the exact `X^T C^-1 X` of those returns.
-pub(crate) fn block_grams(
-    set: &ObservationSet,
-    refs: &[usize],
-    p: usize,
-    row: &RowFn,
-) -> Vec<BlockGram> {
-    let mut selected = vec![false; set.reference_ids.len()];
-    for &r in refs {
-        if let Some(s) = selected.get_mut(r) {
-            *s = true;
-        }
-    }
+/// `X^T C^-1 X` of each visit on `refs`, visits independent (computed in parallel, returned
+/// in visit order: sums are reproducible).
+fn visit_grams(set: &ObservationSet, selected: &[bool], p: usize, row: &RowFn) -> Vec<BlockGram> {
     let members = set.visit_members();
-    let visits: Vec<usize> = (0..set.visits.len())
-        .filter(|&v| selected.get(set.visits[v].reference) == Some(&true) && !members[v].is_empty())
-        .collect();
-    let stats: Vec<Option<VisitStats>> = (0..set.visits.len())
+    (0..set.visits.len())
         .into_par_iter()
+        .filter(|&v| selected[set.visits[v].reference] && !members[v].is_empty())
         .map(|v| {
-            (selected.get(set.visits[v].reference) == Some(&true) && !members[v].is_empty())
-                .then(|| visit_stats(set, &members[v], p, row))
-        })
-        .collect();
-    let times = visit_times(set);
-    blocks(set, visits, &times)
-        .into_par_iter()
-        .map(|block| {
-            let s: Vec<&VisitStats> = block
-                .iter()
-                .map(|&v| {
-                    stats[v]
-                        .as_ref()
-                        .expect("statistics of every selected visit")
-                })
-                .collect();
-            block_gram(&s, block_cov(set, &block, &times), p)
+            let pv = &set.visits[v].nav_cov;
+            let sigma = DMatrix::from_fn(6, 6, |k, l| 0.5 * (pv[k][l] + pv[l][k]));
+            block_gram(&[&visit_stats(set, &members[v], p, row)], sigma, p)
         })
         .collect()
 }
 
-/// `X^T C^-1 X` over the returns on `refs` (`p x p`).
+/// `X^T C^-1 X` over the returns on `refs` (`p x p`): the exact product for those returns
+/// alone.
 pub(crate) fn total_gram(
     set: &ObservationSet,
     refs: &[usize],
     p: usize,
     row: &RowFn,
 ) -> DMatrix<f64> {
+    let mut selected = vec![false; set.reference_ids.len()];
+    for &r in refs {
+        if let Some(s) = selected.get_mut(r) {
+            *s = true;
+        }
+    }
+    if let Some(tau) = set.nav_tau_s {
+        return continuous::gram(set, &selected, p, row, tau);
+    }
     let mut total = DMatrix::zeros(p, p);
-    for g in block_grams(set, refs, p, row) {
+    for g in visit_grams(set, &selected, p, row) {
         g.add_to(&mut total);
     }
     total
@@ -306,7 +216,7 @@ pub(crate) fn count_on(set: &ObservationSet, refs: &[usize]) -> usize {
 }
 
 /// The catalogue's design row: every signature, then the residual (column [`N_EFFECTS`]).
-fn catalogue_row(o: &Observation, out: &mut Vec<(usize, f64)>) {
+pub(crate) fn catalogue_row(o: &Observation, out: &mut Vec<(usize, f64)>) {
     out.extend(o.signature.iter().copied().enumerate());
     out.push((N_EFFECTS, o.residual_m));
 }
@@ -471,7 +381,6 @@ mod tests {
         let idx: Vec<usize> = (0..set.observations.len())
             .filter(|&i| refs.contains(&set.observations[i].reference))
             .collect();
-        let times = visit_times(set);
         let x = DMatrix::from_fn(idx.len(), N_EFFECTS + 1, |i, j| {
             let o = &set.observations[idx[i]];
             if j < N_EFFECTS {
@@ -482,15 +391,18 @@ mod tests {
         });
         let c = DMatrix::from_fn(idx.len(), idx.len(), |i, j| {
             let (a, b) = (&set.observations[idx[i]], &set.observations[idx[j]]);
-            let s = block_cov(set, &[a.visit, b.visit], &times);
-            let off = if a.visit == b.visit { 0 } else { 6 };
-            let mut v: f64 = (0..6)
-                .map(|k| {
-                    (0..6)
-                        .map(|l| a.nav_gradient[k] * s[(k, off + l)] * b.nav_gradient[l])
-                        .sum::<f64>()
-                })
-                .sum();
+            let pv = &set.visits[a.visit].nav_cov;
+            let mut v: f64 = if a.visit == b.visit {
+                (0..6)
+                    .map(|k| {
+                        (0..6)
+                            .map(|l| a.nav_gradient[k] * pv[k][l] * b.nav_gradient[l])
+                            .sum::<f64>()
+                    })
+                    .sum()
+            } else {
+                0.0
+            };
             if i == j {
                 v += a.var_white_m2;
             }
@@ -501,20 +413,13 @@ mod tests {
 
     #[test]
     fn woodbury_equals_the_dense_inverse() {
-        for tau in [None, Some([60.0, 30.0])] {
-            let set = draw(
-                &Scenario {
-                    nav_tau_s: tau,
-                    ..Default::default()
-                },
-                3,
-            );
-            let blocked = total_gram(&set, &[0, 1], N_EFFECTS + 1, &catalogue_row);
-            let dense = dense_gram(&set, &[0, 1]);
-            let scale = dense.abs().max();
-            // Both exact up to rounding of a 240x240 inverse with condition ~1e4.
-            assert!((blocked - &dense).abs().max() < 1e-8 * scale, "tau {tau:?}");
-        }
+        // Independent visits (the Gauss-Markov case has its own test in `continuous`).
+        let set = draw(&Scenario::default(), 3);
+        let blocked = total_gram(&set, &[0, 1], N_EFFECTS + 1, &catalogue_row);
+        let dense = dense_gram(&set, &[0, 1]);
+        let scale = dense.abs().max();
+        // Both exact up to rounding of a 240x240 inverse with condition ~1e4.
+        assert!((blocked - &dense).abs().max() < 1e-8 * scale);
     }
 
     #[test]

@@ -7,6 +7,7 @@
 //! again) -> [`report`] and [`plots`] (diagnosis.json, summary.md, PNGs, corrected.toml).
 
 pub mod analysis;
+pub mod continuous;
 pub mod fit;
 pub mod locate;
 pub mod metrics;

@@ -5,8 +5,10 @@
 //! `r_v = S_v theta + G_v z_v + e_v`, `e_v ~ N(0, diag(var_white))`, `z_v ~ N(0, P_v)`,
 //!
 //! for the returns of visit `v`: `S_v` rows are the effect signatures, `G_v` rows the
-//! navigation gradients, `z_v` the navigation error shared by the visit (correlated over tens
-//! of seconds), `P_v` its covariance. Visits are independent.
+//! navigation gradients, `z_v` the navigation error shared by the visit, `P_v` its covariance,
+//! visits independent. With correlation times ([`ObservationSet::nav_tau_s`]) the navigation
+//! error is instead a Gauss-Markov process in time, continuous within and between visits
+//! (`super::continuous`).
 
 use crate::{Error, Result};
 
@@ -151,8 +153,9 @@ pub struct Observation {
     pub covariates: Covariates,
 }
 
-/// One time-contiguous run of returns over one patch in one pass: its navigation error is one
-/// draw `z_v ~ N(0, nav_cov)` shared by all its returns.
+/// One time-contiguous run of returns over one patch in one pass. Without correlation times
+/// its navigation error is one draw `z_v ~ N(0, nav_cov)` shared by all its returns; with them
+/// `nav_cov` gives the sigmas of the continuous-time errors at its returns.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Visit {
     /// Index of the reference patch.
@@ -176,8 +179,8 @@ pub struct ObservationSet {
     /// Number of passes (profile files).
     pub passes: usize,
     /// Correlation times (s) of the navigation position and attitude errors (first-order
-    /// Gauss-Markov): visits closer in time than a few of them share part of their error.
-    /// `None`: visits independent.
+    /// Gauss-Markov processes in time, within and between visits). `None`: one error per
+    /// visit, visits independent.
     pub nav_tau_s: Option<[f64; 2]>,
 }
 
@@ -548,36 +551,30 @@ pub(crate) mod synthetic {
         set
     }
 
-    /// Navigation errors of every visit from one Gauss-Markov process per component sampled at
-    /// the visits' mean times (unit-variance AR(1) scaled by each visit's sigma).
+    /// Navigation errors at every return from one Gauss-Markov process per component, sampled
+    /// exactly at the returns' times in time order (unit-variance AR(1) scaled by the sigma of
+    /// the return's visit): continuous within and between visits, as the simulator's.
     fn gauss_markov(set: &ObservationSet, tau: [f64; 2], rng: &mut ChaCha8Rng) -> Vec<[f64; 6]> {
-        let mut t = vec![0.0; set.visits.len()];
-        let mut n = vec![0.0; set.visits.len()];
-        for o in &set.observations {
-            t[o.visit] += o.covariates.time_s;
-            n[o.visit] += 1.0;
-        }
-        for (t, n) in t.iter_mut().zip(&n) {
-            *t /= f64::max(*n, 1.0);
-        }
-        let mut order: Vec<usize> = (0..set.visits.len()).collect();
-        order.sort_by(|&a, &b| t[a].total_cmp(&t[b]).then(a.cmp(&b)));
-        let mut z = vec![[0.0; 6]; set.visits.len()];
+        let mut order: Vec<usize> = (0..set.observations.len()).collect();
+        let time = |i: usize| set.observations[i].covariates.time_s;
+        order.sort_by(|&a, &b| time(a).total_cmp(&time(b)).then(a.cmp(&b)));
+        let mut z = vec![[0.0; 6]; set.observations.len()];
         let mut u = [0.0; 6];
         let mut previous: Option<f64> = None;
-        for v in order {
+        for i in order {
+            let p = &set.visits[set.observations[i].visit].nav_cov;
             for (k, uk) in u.iter_mut().enumerate() {
                 let e = normal(rng);
                 *uk = match previous {
                     Some(tp) => {
-                        let r = (-(t[v] - tp) / tau[k / 3]).exp();
+                        let r = (-(time(i) - tp) / tau[k / 3]).exp();
                         r * *uk + (1.0 - r * r).sqrt() * e
                     }
                     None => e,
                 };
-                z[v][k] = set.visits[v].nav_cov[k][k].sqrt() * *uk;
+                z[i][k] = p[k][k].sqrt() * *uk;
             }
-            previous = Some(t[v]);
+            previous = Some(time(i));
         }
         z
     }
@@ -586,26 +583,27 @@ pub(crate) mod synthetic {
     /// injected effects and the out-of-model term of `s` plus fresh noise from `seed`.
     pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let z = match s.nav_tau_s {
-            None => set
-                .visits
-                .iter()
-                .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
-                .collect(),
+        let z: Vec<[f64; 6]> = match s.nav_tau_s {
+            None => {
+                let per_visit: Vec<[f64; 6]> = set
+                    .visits
+                    .iter()
+                    .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
+                    .collect();
+                set.observations
+                    .iter()
+                    .map(|o| per_visit[o.visit])
+                    .collect()
+            }
             Some(tau) => gauss_markov(set, tau, &mut rng),
         };
-        for o in &mut set.observations {
+        for (o, z) in set.observations.iter_mut().zip(&z) {
             let systematic: f64 = s
                 .truth
                 .iter()
                 .map(|&(e, x)| o.signature[signature_index(e)] * x)
                 .sum();
-            let nav: f64 = o
-                .nav_gradient
-                .iter()
-                .zip(&z[o.visit])
-                .map(|(g, z)| g * z)
-                .sum();
+            let nav: f64 = o.nav_gradient.iter().zip(z).map(|(g, z)| g * z).sum();
             let cyclic = s.range_cyclic_m
                 * (std::f64::consts::TAU * o.covariates.range_m / RANGE_PERIOD_M).sin();
             o.residual_m = systematic + nav + cyclic + o.var_white_m2.sqrt() * normal(&mut rng);

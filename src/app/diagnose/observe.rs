@@ -554,8 +554,8 @@ fn observe_visit(
 ) -> Result<(Visit, Vec<Observation>)> {
     let frame = &index.frames[pv.patch];
     let (t_first, t_last) = (pv.hits[0].t_s, pv.hits[pv.hits.len() - 1].t_s);
-    let (t_mid, half_s) = (0.5 * (t_first + t_last), 0.5 * (t_last - t_first));
-    let (nav_cov, nav_var) = visit_nav_cov(model.traj, t_mid, frame)
+    let t_mid = 0.5 * (t_first + t_last);
+    let nav_cov = visit_nav_cov(model.traj, t_mid, frame)
         .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
     let mut cursor = model.cursor();
     let mut obs = Vec::with_capacity(pv.hits.len());
@@ -573,10 +573,7 @@ fn observe_visit(
             pass: pv.pass,
             ..covariates(&loc, model, frame, &r)
         };
-        let mut o = observation(&loc, model, frame, &r, (reference, visit), cov);
-        o.var_white_m2 +=
-            drift_variance_m2(&o.nav_gradient, &nav_var, loc.t_s - t_mid, half_s, model);
-        obs.push(o);
+        obs.push(observation(&loc, model, frame, &r, (reference, visit), cov));
     }
     let v = Visit {
         reference,
@@ -586,35 +583,13 @@ fn observe_visit(
     Ok((v, obs))
 }
 
-/// Variance (m^2) of the navigation error's drift within a visit at `u` seconds from its mid
-/// time, `half_s` its half duration, along a return's navigation gradient `g`. Each error is a
-/// first-order Gauss-Markov process (correlation times `diagnose.nav_position_tau_s`,
-/// `diagnose.nav_attitude_tau_s`): over a visit, a random walk of diffusion
-/// `q = 2 sigma^2 / tau`. Its deviation from the visit's mean (the visit's shared error absorbs
-/// the mean) has variance `q (u^2 / (2 h) + h / 6)`. Added to the independent variance.
-fn drift_variance_m2(
-    g: &[f64; 6],
-    nav_var: &[f64; 6],
-    u: f64,
-    half_s: f64,
-    model: &ReturnModel,
-) -> f64 {
-    if half_s <= 0.0 {
-        return 0.0;
-    }
-    let shape = u * u / (2.0 * half_s) + half_s / 6.0;
-    (0..6)
-        .map(|k| g[k] * g[k] * 2.0 * nav_var[k] / model.nav_tau_s[k / 3] * shape)
-        .sum()
-}
-
 /// `P_v`: SMRMSG variances at `t_mid` plus the patch's survey variance along its normal
 /// (a plane offset along `n` is indistinguishable from an INS position error along `n`).
 fn visit_nav_cov(
     traj: &Trajectory,
     t_mid: f64,
     frame: &PatchFrame,
-) -> Result<([[f64; 6]; 6], [f64; 6]), RejectReason> {
+) -> Result<[[f64; 6]; 6], RejectReason> {
     let mut cursor = traj.sigma_cursor().ok_or(RejectReason::OutsideAccuracy)?;
     let s = cursor.at(t_mid).map_err(RejectReason::from)?;
     let nav_var: [f64; 6] = std::array::from_fn(|k| {
@@ -637,7 +612,7 @@ fn visit_nav_cov(
             diag + patch
         })
     });
-    Ok((p, nav_var))
+    Ok(p)
 }
 
 /// Where and how a return was measured (`reference_id` and `pass` are set by the caller).

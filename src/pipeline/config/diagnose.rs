@@ -27,8 +27,8 @@ pub struct DiagnoseConfig {
     /// A visit longer than this is split (s): one visit shares one navigation error.
     #[serde(default = "default_max_visit_s")]
     pub max_visit_s: f64,
-    /// Correlation time of the INS position errors (s): their drift within a visit is added
-    /// to each return's independent variance.
+    /// Correlation time of the INS position errors (s): first-order Gauss-Markov in time,
+    /// within and between visits (docs/diagnosis.md, "The residual model").
     #[serde(default = "default_nav_position_tau_s")]
     pub nav_position_tau_s: f64,
     /// Correlation time of the INS attitude errors (s).

@@ -1,0 +1,263 @@
+//! `X^T C^-1 X` when the navigation errors are first-order Gauss-Markov processes in time
+//! ([`ObservationSet::nav_tau_s`]), continuous within and between visits (docs/diagnosis.md,
+//! "The residual model").
+//!
+//! Each error component `k` (north, east, down (m); roll, pitch, heading (rad)) is
+//! `z_k(t) = s_k(t) zeta_k(t)`, `zeta_k` a unit Gauss-Markov process of correlation time
+//! `tau_k`, `s_k` the SMRMSG sigma. It is represented by its values at knots on a grid of
+//! [`KNOT_S`] seconds (the grid points either side of every return) and linear between them;
+//! what the line leaves out (a Brownian bridge, variance `q (t - t_a)(t_b - t) / (t_b - t_a)`
+//! along the return's gradient, `q = 2 s^2 / tau`) is added to the return's independent
+//! variance. A return's residual is then `x theta + h^T u + e`, `u` the knot values
+//! (`h`: the navigation gradient times the two interpolation weights), `e ~ N(0, D)`.
+//!
+//! The knots of one component form a Markov chain: the prior precision `Q` of `u` is block
+//! tridiagonal (6 x 6 blocks, knots in time order), and so is `M = Q + H^T D^-1 H`, since a
+//! return touches two neighbouring knots. `X^T C^-1 X = X^T D^-1 X - B^T M^-1 B`,
+//! `B = H^T D^-1 X`, with `M` factorised by block Cholesky: O(n p^2 + K 6^3 p) for `n` returns,
+//! `p` columns and `K` knots, whatever the survey's length.
+
+use super::fit::RowFn;
+use super::model::{Observation, ObservationSet};
+use nalgebra::{DMatrix, Matrix6, SMatrix};
+
+/// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
+/// bridge left out is small (0.1 s at 2 s^2 / tau = 1e-5 m^2/s: 0.5 mm) and its correlation
+/// within 0.1 s, unlike a visit's whole drift, matters little.
+pub const KNOT_S: f64 = 0.1;
+
+/// Smallest sigma a knot gets (m or rad): a component without error would make `Q` infinite.
+const MIN_SIGMA: f64 = 1e-12;
+
+/// One return on the selected references, ready for accumulation.
+struct Row<'a> {
+    o: &'a Observation,
+    /// Index of its left knot in the sorted knot list, and the weight of the right one.
+    knot: usize,
+    w: f64,
+}
+
+/// The knots (grid indices, ascending) the returns on `selected` touch, each return's left
+/// knot and weight, and each knot's sigmas (from the first return touching it).
+fn knots<'a>(
+    set: &'a ObservationSet,
+    selected: &[bool],
+    t0: f64,
+) -> (Vec<i64>, Vec<Row<'a>>, Vec<[f64; 6]>) {
+    let grid = |t: f64| ((t - t0) / KNOT_S).floor() as i64;
+    let mut idx: Vec<i64> = set
+        .observations
+        .iter()
+        .filter(|o| selected[o.reference])
+        .flat_map(|o| {
+            let i = grid(o.covariates.time_s);
+            [i, i + 1]
+        })
+        .collect();
+    idx.sort_unstable();
+    idx.dedup();
+    let mut sigma = vec![[f64::NAN; 6]; idx.len()];
+    let mut rows = Vec::new();
+    for o in set.observations.iter().filter(|o| selected[o.reference]) {
+        let i = grid(o.covariates.time_s);
+        let knot = idx.binary_search(&i).expect("every left knot is listed");
+        let p = &set.visits[o.visit].nav_cov;
+        for j in [knot, knot + 1] {
+            if sigma[j][0].is_nan() {
+                sigma[j] = std::array::from_fn(|k| p[k][k].max(0.0).sqrt().max(MIN_SIGMA));
+            }
+        }
+        let w = ((o.covariates.time_s - t0) / KNOT_S - i as f64).clamp(0.0, 1.0);
+        rows.push(Row { o, knot, w });
+    }
+    (idx, rows, sigma)
+}
+
+/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient.
+fn bridge_var_m2(o: &Observation, nav_var: &[[f64; 6]; 6], w: f64, tau: [f64; 2]) -> f64 {
+    let shape = w * (1.0 - w) * KNOT_S;
+    (0..6)
+        .map(|k| o.nav_gradient[k].powi(2) * 2.0 * nav_var[k][k].max(0.0) / tau[k / 3] * shape)
+        .sum()
+}
+
+/// The prior precision `Q` of the knot values: diagonal blocks and the blocks coupling each
+/// knot to the next (both diagonal: the components are independent).
+fn prior_precision(
+    idx: &[i64],
+    sigma: &[[f64; 6]],
+    tau: [f64; 2],
+) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
+    let mut diag = vec![[1.0; 6]; idx.len()];
+    let mut next = vec![[0.0; 6]; idx.len().saturating_sub(1)];
+    for k in 0..6 {
+        for (j, n) in next.iter_mut().enumerate() {
+            let rho = (-((idx[j + 1] - idx[j]) as f64) * KNOT_S / tau[k / 3]).exp();
+            let c = 1.0 - rho * rho;
+            diag[j][k] += rho * rho / c;
+            diag[j + 1][k] += rho * rho / c;
+            n[k] = -rho / c / (sigma[j][k] * sigma[j + 1][k]);
+        }
+        for (d, s) in diag.iter_mut().zip(sigma) {
+            d[k] /= s[k] * s[k];
+        }
+    }
+    (diag, next)
+}
+
+/// `X^T C^-1 X` (`p x p`) of the returns on `selected` under the continuous-time model.
+pub(crate) fn gram(
+    set: &ObservationSet,
+    selected: &[bool],
+    p: usize,
+    row: &RowFn,
+    tau: [f64; 2],
+) -> DMatrix<f64> {
+    let t0 = set
+        .observations
+        .iter()
+        .map(|o| o.covariates.time_s)
+        .fold(f64::INFINITY, f64::min);
+    let (idx, rows, sigma) = knots(set, selected, t0);
+    let nk = idx.len();
+    let (q_diag, q_next) = prior_precision(&idx, &sigma, tau);
+    let mut m_diag: Vec<Matrix6<f64>> = q_diag
+        .iter()
+        .map(|d| Matrix6::from_diagonal(&(*d).into()))
+        .collect();
+    let mut m_next: Vec<Matrix6<f64>> = q_next
+        .iter()
+        .map(|d| Matrix6::from_diagonal(&(*d).into()))
+        .collect();
+    let mut a = DMatrix::<f64>::zeros(p, p);
+    let mut b = DMatrix::<f64>::zeros(6 * nk, p);
+    let mut entries = Vec::new();
+    for r in &rows {
+        let o = r.o;
+        let nav_cov = &set.visits[o.visit].nav_cov;
+        let d_inv = 1.0 / (o.var_white_m2 + bridge_var_m2(o, nav_cov, r.w, tau));
+        entries.clear();
+        row(o, &mut entries);
+        for &(ca, xa) in &entries {
+            for &(cb, xb) in &entries {
+                a[(ca, cb)] += d_inv * xa * xb;
+            }
+        }
+        let g = SMatrix::<f64, 6, 1>::from_column_slice(&o.nav_gradient);
+        let (hl, hr) = (g * (1.0 - r.w), g * r.w);
+        m_diag[r.knot] += hl * hl.transpose() * d_inv;
+        m_diag[r.knot + 1] += hr * hr.transpose() * d_inv;
+        m_next[r.knot] += hl * hr.transpose() * d_inv;
+        for &(c, x) in &entries {
+            for k in 0..6 {
+                b[(6 * r.knot + k, c)] += hl[k] * d_inv * x;
+                b[(6 * r.knot + 6 + k, c)] += hr[k] * d_inv * x;
+            }
+        }
+    }
+    a - whitened_gram(&m_diag, &m_next, &b)
+}
+
+/// `B^T M^-1 B` for the symmetric positive definite block-tridiagonal `M` (diagonal blocks
+/// `diag`, `next[j]` = the block of row `j`, column `j + 1`): block Cholesky `M = L L^T`,
+/// `Y = L^-1 B` by forward substitution, `Y^T Y`.
+fn whitened_gram(diag: &[Matrix6<f64>], next: &[Matrix6<f64>], b: &DMatrix<f64>) -> DMatrix<f64> {
+    let p = b.ncols();
+    let mut out = DMatrix::<f64>::zeros(p, p);
+    // Carried from knot j - 1: L_{j, j-1} and Y_{j-1}.
+    let mut below: Option<(Matrix6<f64>, DMatrix<f64>)> = None;
+    for (j, d) in diag.iter().enumerate() {
+        let mut s = *d;
+        let mut rhs = b.rows(6 * j, 6).into_owned();
+        if let Some((l_below, y_prev)) = &below {
+            s -= l_below * l_below.transpose();
+            rhs -= l_below * y_prev;
+        }
+        let l = s
+            .cholesky()
+            .expect("prior precision plus a Gram matrix is positive definite")
+            .l();
+        let y = l
+            .solve_lower_triangular(&rhs)
+            .expect("Cholesky factor is invertible");
+        out += y.transpose() * &y;
+        below = next.get(j).map(|n| {
+            // L_{j+1, j} = M_{j+1, j} L_jj^-T = (L_jj^-1 M_{j, j+1})^T.
+            let t = l
+                .solve_lower_triangular(n)
+                .expect("Cholesky factor is invertible");
+            (t.transpose(), y)
+        });
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::fit::catalogue_row;
+    use super::super::model::synthetic::{draw, Scenario};
+    use super::super::model::N_EFFECTS;
+    use super::*;
+
+    /// Dense reference: `C = D + H Sigma H^T` with `Sigma` the Gauss-Markov covariance of the
+    /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses).
+    fn dense_gram(set: &ObservationSet, selected: &[bool], tau: [f64; 2]) -> DMatrix<f64> {
+        let t0 = set
+            .observations
+            .iter()
+            .map(|o| o.covariates.time_s)
+            .fold(f64::INFINITY, f64::min);
+        let (idx, rows, sigma) = knots(set, selected, t0);
+        let (n, nk) = (rows.len(), idx.len());
+        let mut h = DMatrix::<f64>::zeros(n, 6 * nk);
+        let mut x = DMatrix::<f64>::zeros(n, N_EFFECTS + 1);
+        let mut c = DMatrix::<f64>::zeros(n, n);
+        let mut entries = Vec::new();
+        for (i, r) in rows.iter().enumerate() {
+            for k in 0..6 {
+                h[(i, 6 * r.knot + k)] = (1.0 - r.w) * r.o.nav_gradient[k];
+                h[(i, 6 * r.knot + 6 + k)] = r.w * r.o.nav_gradient[k];
+            }
+            entries.clear();
+            catalogue_row(r.o, &mut entries);
+            for &(col, v) in &entries {
+                x[(i, col)] = v;
+            }
+            c[(i, i)] =
+                r.o.var_white_m2 + bridge_var_m2(r.o, &set.visits[r.o.visit].nav_cov, r.w, tau);
+        }
+        let prior = DMatrix::from_fn(6 * nk, 6 * nk, |i, j| {
+            let (ki, kj) = (i % 6, j % 6);
+            if ki != kj {
+                return 0.0;
+            }
+            let dt = ((idx[i / 6] - idx[j / 6]) as f64 * KNOT_S).abs();
+            sigma[i / 6][ki] * sigma[j / 6][kj] * (-dt / tau[ki / 3]).exp()
+        });
+        c += &h * prior * h.transpose();
+        x.transpose() * c.try_inverse().unwrap() * x
+    }
+
+    #[test]
+    fn block_tridiagonal_solve_equals_the_dense_inverse() {
+        let tau = [60.0, 30.0];
+        let set = draw(
+            &Scenario {
+                nav_tau_s: Some(tau),
+                ..Default::default()
+            },
+            3,
+        );
+        let mut selected = vec![false; set.reference_ids.len()];
+        (selected[0], selected[1]) = (true, true);
+        let fast = gram(&set, &selected, N_EFFECTS + 1, &catalogue_row, tau);
+        let dense = dense_gram(&set, &selected, tau);
+        let scale = dense.abs().max();
+        // Both exact up to the rounding of a 240 x 240 inverse.
+        let err = (fast - &dense).abs().max();
+        assert!(
+            err < 1e-8 * scale,
+            "largest difference {err:e} of {scale:e}"
+        );
+    }
+}
