@@ -1,7 +1,7 @@
 //! Every file a pipeline reads and every file a run may write, named by the key that sets it,
 //! checked against each other before any work (`io::paths`).
 
-use super::config::{LoadedPipeline, OutputConfig, PipelineConfig, SplitMode};
+use super::config::{LoadedPipeline, OutputConfig, OutputFormat, PipelineConfig, SplitMode};
 use crate::io::paths::{check_collisions, KeyedPath};
 use crate::Result;
 use std::path::{Path, PathBuf};
@@ -15,6 +15,15 @@ impl OutputConfig {
             .unwrap_or_else(|| self.las.with_extension("report.json"))
     }
 
+    /// The output file (unsplit): `output.las` with the format's extension (`.laz` for LAZ;
+    /// LAS keeps the name as given).
+    pub fn cloud_path(&self) -> PathBuf {
+        match self.format {
+            OutputFormat::Las => self.las.to_path_buf(),
+            f => self.las.with_extension(f.extension()),
+        }
+    }
+
     /// File stem of `output.las`: the base of split names and sync plot names.
     pub fn stem(&self) -> String {
         self.las
@@ -24,18 +33,20 @@ impl OutputConfig {
     }
 }
 
-/// Path of split part `part` (1-based) of a `split = "max_points"` output.
-pub fn numbered_part(las: &Path, stem: &str, part: u32) -> PathBuf {
-    las.with_file_name(format!("{stem}_{part:04}.las"))
+/// Path of split part `part` (1-based) of a `split = "max_points"` output with extension
+/// `ext`.
+pub fn numbered_part(las: &Path, stem: &str, part: u32, ext: &str) -> PathBuf {
+    las.with_file_name(format!("{stem}_{part:04}.{ext}"))
 }
 
-/// Path of the output of profile file `profile` with `split = "per_input"`.
-pub fn per_input_part(las: &Path, stem: &str, profile: &Path) -> PathBuf {
+/// Path of the output of profile file `profile` with `split = "per_input"` and extension
+/// `ext`.
+pub fn per_input_part(las: &Path, stem: &str, profile: &Path, ext: &str) -> PathBuf {
     let input_stem = profile
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    las.with_file_name(format!("{stem}_{input_stem}.las"))
+    las.with_file_name(format!("{stem}_{input_stem}.{ext}"))
 }
 
 /// Every input of a pipeline: the pipeline file, trajectory, accuracy, profile, sync point and
@@ -67,14 +78,15 @@ pub fn inputs(p: &LoadedPipeline) -> Vec<KeyedPath> {
     v
 }
 
-/// Every file a run may write: the LAS file(s), the report and the sync plots. With
+/// Every file a run may write: the LAS (or LAZ) file(s), the report and the sync plots. With
 /// `split = "max_points"` the number of parts is not known before the run: the first part and
-/// every existing file the run could overwrite (`<stem>_NNNN.las`) are listed.
+/// every existing file the run could overwrite (`<stem>_NNNN.las`, `.laz`) are listed.
 pub fn outputs(c: &PipelineConfig) -> Vec<KeyedPath> {
     let o = &c.output;
     let stem = o.stem();
+    let ext = o.format.extension();
     let mut v: Vec<KeyedPath> = match o.split {
-        SplitMode::None => vec![("output.las".into(), o.las.to_path_buf())],
+        SplitMode::None => vec![("output.las".into(), o.cloud_path())],
         SplitMode::PerInput => c
             .inputs
             .profiles
@@ -82,12 +94,12 @@ pub fn outputs(c: &PipelineConfig) -> Vec<KeyedPath> {
             .enumerate()
             .map(|(k, f)| {
                 let key = format!("output.las (split per input, inputs.profiles[{k}])");
-                (key, per_input_part(&o.las, &stem, f))
+                (key, per_input_part(&o.las, &stem, f, ext))
             })
             .collect(),
         SplitMode::MaxPoints => {
-            let mut parts = existing_numbered_parts(&o.las, &stem);
-            parts.push(numbered_part(&o.las, &stem, 1));
+            let mut parts = existing_numbered_parts(&o.las, &stem, ext);
+            parts.push(numbered_part(&o.las, &stem, 1, ext));
             parts.sort();
             parts.dedup();
             parts
@@ -109,8 +121,8 @@ pub fn outputs(c: &PipelineConfig) -> Vec<KeyedPath> {
     v
 }
 
-/// Existing files `<stem>_NNNN.las` (four or more digits) beside `las`.
-pub fn existing_numbered_parts(las: &Path, stem: &str) -> Vec<PathBuf> {
+/// Existing files `<stem>_NNNN.<ext>` (four or more digits) beside `las`.
+pub fn existing_numbered_parts(las: &Path, stem: &str, ext: &str) -> Vec<PathBuf> {
     let dir = match las.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -118,14 +130,14 @@ pub fn existing_numbered_parts(las: &Path, stem: &str) -> Vec<PathBuf> {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return Vec::new();
     };
-    let prefix = format!("{stem}_");
+    let (prefix, suffix) = (format!("{stem}_"), format!(".{ext}"));
     entries
         .filter_map(|e| e.ok())
         .filter(|e| {
             let name = e.file_name();
             let name = name.to_string_lossy();
             name.strip_prefix(&prefix)
-                .and_then(|rest| rest.strip_suffix(".las"))
+                .and_then(|rest| rest.strip_suffix(&suffix))
                 .is_some_and(|n| n.len() >= 4 && n.bytes().all(|b| b.is_ascii_digit()))
         })
         .map(|e| las.with_file_name(e.file_name()))

@@ -142,6 +142,12 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
     let georef_s = started.elapsed().as_secs_f64();
     timed("georeference_and_write", started);
 
+    let started = Instant::now();
+    let summaries = write::into_format(c.output.format, summaries)?;
+    if c.output.format != config::OutputFormat::Las {
+        timed("compress", started);
+    }
+
     let mut totals = ReturnCounts::default();
     inputs.iter().for_each(|i| totals.merge(&i.counts));
     let outputs = summaries

@@ -2,7 +2,7 @@
 //! by point count, named predictably, each written atomically; records arrive encoded, in
 //! input order.
 
-use super::config::{PipelineConfig, SplitMode};
+use super::config::{OutputFormat, PipelineConfig, SplitMode};
 use super::files::{numbered_part, per_input_part};
 use super::schema::OutputSchema;
 use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
@@ -137,8 +137,8 @@ impl LasSink {
         let las = &self.settings.las;
         match self.settings.split {
             SplitMode::None => las.clone(),
-            SplitMode::PerInput => per_input_part(las, &self.settings.stem, &self.input),
-            SplitMode::MaxPoints => numbered_part(las, &self.settings.stem, self.parts + 1),
+            SplitMode::PerInput => per_input_part(las, &self.settings.stem, &self.input, "las"),
+            SplitMode::MaxPoints => numbered_part(las, &self.settings.stem, self.parts + 1, "las"),
         }
     }
 
@@ -230,6 +230,25 @@ pub(super) fn encode_error(
         );
     }
     Error::bad_record(file.path(), format!("record {}", records[failing]), problem)
+}
+
+/// The finished LAS files in the configured format, each beside its LAS: LAZ compressed in
+/// parallel chunks on the current thread pool (`io::laz`), the LAS removed.
+pub fn into_format(format: OutputFormat, files: Vec<LasSummary>) -> Result<Vec<LasSummary>> {
+    if format == OutputFormat::Las {
+        return Ok(files);
+    }
+    files
+        .into_iter()
+        .map(|mut s| {
+            let laz = s.path.with_extension(format.extension());
+            let sizes = crate::io::laz::compress_las(&s.path, &laz)?;
+            std::fs::remove_file(&s.path).map_err(|e| Error::io(&s.path, e))?;
+            s.path = laz;
+            s.file_bytes = sizes.laz_bytes;
+            Ok(s)
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@ use kinescan::io::las::{
     ExtraDim, GpsTimeConvention, LasPoint, LasWriter, LasWriterConfig, PointLayout, MAX_EXTRA_DIMS,
 };
 use kinescan::io::laz::{compress_las, CHUNK_POINTS};
+use kinescan::pipeline::{config, run, RunOptions};
 
 const OFFSET_M: [f64; 3] = [691_000.0, 5_335_000.0, 500.0];
 
@@ -81,6 +82,28 @@ fn laszip_vlr(b: &[u8]) -> (usize, Vec<u8>) {
     panic!("no laszip VLR");
 }
 
+/// The LAZ `b` holds the LAS `a`: the same header except the point offset, the VLR count and
+/// the compression bit, the same VLRs, and records restored byte for byte by the `laz` crate's
+/// sequential decompressor.
+fn assert_restores(a: &[u8], b: &[u8]) {
+    // Header: only the point offset, the VLR count and the compression bit differ.
+    let las_offset = u32_at(a, 96) as usize;
+    assert_eq!(a[..96], b[..96]);
+    assert_eq!(u32_at(b, 100), u32_at(a, 100) + 1);
+    assert_eq!(b[104], a[104] | 0x80);
+    assert_eq!(a[105..375], b[105..375]);
+    assert_eq!(a[375..las_offset], b[375..las_offset], "VLRs kept");
+    let (laz_offset, vlr) = laszip_vlr(b);
+    let vlr = laz::LazVlr::from_buffer(&vlr).unwrap();
+    let mut records = vec![0u8; a.len() - las_offset];
+    // The chunk table offset is absolute in the file: decompress from the file, not a slice.
+    let mut file = std::io::Cursor::new(b);
+    file.set_position(laz_offset as u64);
+    let mut decompressor = laz::LasZipDecompressor::new(file, vlr).unwrap();
+    laz::LazDecompressor::decompress_many(&mut decompressor, &mut records).unwrap();
+    assert!(records == a[las_offset..], "decompressed records differ");
+}
+
 #[test]
 fn laz_restores_the_las_byte_for_byte() {
     let dir = tempfile::tempdir().unwrap();
@@ -99,22 +122,7 @@ fn laz_restores_the_las_byte_for_byte() {
         b.len(),
         100.0 * b.len() as f64 / a.len() as f64
     );
-    // Header: only the point offset, the VLR count and the compression bit differ.
-    let las_offset = u32_at(&a, 96) as usize;
-    assert_eq!(a[..96], b[..96]);
-    assert_eq!(u32_at(&b, 100), u32_at(&a, 100) + 1);
-    assert_eq!(b[104], a[104] | 0x80);
-    assert_eq!(a[105..375], b[105..375]);
-    assert_eq!(a[375..las_offset], b[375..las_offset], "VLRs kept");
-    let (laz_offset, vlr) = laszip_vlr(&b);
-    let vlr = laz::LazVlr::from_buffer(&vlr).unwrap();
-    let mut records = vec![0u8; a.len() - las_offset];
-    // The chunk table offset is absolute in the file: decompress from the file, not a slice.
-    let mut file = std::io::Cursor::new(&b[..]);
-    file.set_position(laz_offset as u64);
-    let mut decompressor = laz::LasZipDecompressor::new(file, vlr).unwrap();
-    laz::LazDecompressor::decompress_many(&mut decompressor, &mut records).unwrap();
-    assert!(records == a[las_offset..], "decompressed records differ");
+    assert_restores(&a, &b);
     // Same input, same bytes.
     let again = out.join("again.laz");
     compress_las(&las, &again).unwrap();
@@ -129,4 +137,44 @@ fn laz_refuses_a_file_that_is_not_our_las() {
     let err = compress_las(&bad, &dir.path().join("bad.laz")).unwrap_err();
     assert!(err.to_string().contains("bad.las"), "{err}");
     assert!(!dir.path().join("bad.laz").exists());
+}
+
+/// `output.format = "laz"` (more than one LASzip chunk): the run publishes `<stem>.laz` (no LAS
+/// beside it) holding exactly
+/// the LAS the same run writes with `format = "las"`, extra dimensions included; the report
+/// names the LAZ, its size and the compression stage. With `KINESCAN_LAZ_OUT` set, both files
+/// are kept as `pipeline.las` and `pipeline.laz` for tests/laz_check.py (laspy, in CI).
+#[test]
+fn pipeline_writes_laz_holding_the_same_las() {
+    let f = crate::pipeline_roundtrip::fixture(CHUNK_POINTS as usize + 5_000);
+    let path = f.dir.path().join("pipeline.toml");
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    text.push_str(crate::uncertainty_pipeline::FULL);
+    std::fs::write(&path, text).unwrap();
+    let opts = RunOptions {
+        threads: Some(2),
+        progress: false,
+        chunk_returns: 1000,
+    };
+    run(&config::load(&path, &[]).unwrap(), &opts).unwrap();
+    let set = [
+        "output.format = \"laz\"".to_string(),
+        "output.las = \"out/packed.las\"".to_string(),
+    ];
+    let report = run(&config::load(&path, &set).unwrap(), &opts).unwrap();
+    let out = f.dir.path().join("out");
+    assert!(!out.join("packed.las").exists(), "the LAS is not published");
+    let (las, laz) = (out.join("cloud.las"), out.join("packed.laz"));
+    let (a, b) = (std::fs::read(&las).unwrap(), std::fs::read(&laz).unwrap());
+    assert_eq!(report.outputs.len(), 1);
+    assert_eq!(report.outputs[0].path, laz);
+    assert_eq!(report.outputs[0].bytes, b.len() as u64);
+    assert!(report.stages.iter().any(|s| s.stage == "compress"));
+    assert_restores(&a, &b);
+    if let Some(keep) = std::env::var_os("KINESCAN_LAZ_OUT") {
+        std::fs::copy(&las, Path::new(&keep).join("pipeline.las")).unwrap();
+        std::fs::copy(&laz, Path::new(&keep).join("pipeline.laz")).unwrap();
+    }
+    let err = config::load(&path, &["output.format = \"copc\"".to_string()]).unwrap_err();
+    assert!(err.to_string().contains("output.format"), "{err}");
 }

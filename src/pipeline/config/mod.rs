@@ -22,7 +22,7 @@ mod uncertainty;
 
 pub use diagnose::DiagnoseConfig;
 pub use inputs::{InputsConfig, TrajectoryConfig};
-pub use output::{FrameConfig, OutputConfig, SplitMode, Strictness};
+pub use output::{FrameConfig, OutputConfig, OutputFormat, SplitMode, Strictness};
 pub use refusal::Refusal;
 pub use sensor::{LatencyConfig, SensorConfig, TimeConfig, MIN_PERIOD_S};
 pub use sync::SyncConfig;

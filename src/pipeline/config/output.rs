@@ -67,6 +67,27 @@ pub enum SplitMode {
     MaxPoints,
 }
 
+/// The point cloud file format.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OutputFormat {
+    /// LAS 1.4 (conventions §7).
+    #[default]
+    Las,
+    /// LAZ 1.4: the same LAS compressed with LASzip in parallel chunks (`io::laz`).
+    Laz,
+}
+
+impl OutputFormat {
+    /// The file extension of the format (`las`, `laz`).
+    pub fn extension(self) -> &'static str {
+        match self {
+            OutputFormat::Las => "las",
+            OutputFormat::Laz => "laz",
+        }
+    }
+}
+
 /// What happens to a return that cannot be georeferenced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -81,8 +102,12 @@ pub enum Strictness {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OutputConfig {
-    /// Output LAS path (the base name when split).
+    /// Output LAS path (the base name when split); with `format = "laz"` the files take the
+    /// `.laz` extension instead.
     pub las: ConfigPath,
+    /// File format: `las` (default) or `laz`.
+    #[serde(default)]
+    pub format: OutputFormat,
     /// Run report path (JSON); default: `<las stem>.report.json` beside the LAS.
     #[serde(default)]
     pub report: Option<ConfigPath>,
