@@ -14,22 +14,17 @@ fn pipeline(name: &str) -> PathBuf {
         .join(name)
 }
 
-/// Decodes the PNG at `path` and checks it is a plot (default 800 x 500 px) with data drawn in
-/// the first palette colour. Set `KINESCAN_PLOT_OUT=dir` to keep a copy for a visual check.
+/// The plot at `path` is an image of at least 400 x 300 px with text and data drawn in the
+/// first palette colour.
 fn assert_plot_png(path: &Path) {
-    let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-    let mut reader = decoder.read_info().unwrap();
-    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-    let info = reader.next_frame(&mut buf).unwrap();
-    assert!(info.width >= 400 && info.height >= 300, "{path:?}");
-    let data_pixels = buf[..info.buffer_size()]
-        .chunks(3)
-        .filter(|p| *p == kinescan::plot::PALETTE[0])
-        .count();
-    assert!(data_pixels > 100, "{path:?}: {data_pixels} data pixels");
-    if let Some(keep) = std::env::var_os("KINESCAN_PLOT_OUT") {
-        std::fs::copy(path, Path::new(&keep).join(path.file_name().unwrap())).unwrap();
-    }
+    let p = crate::common::plot_pixels(path);
+    assert!(p.width >= 400 && p.height >= 300, "{path:?}");
+    assert!(p.black > 500, "{path:?}: {} text pixels", p.black);
+    assert!(
+        p.first_series > 100,
+        "{path:?}: {} data pixels",
+        p.first_series
+    );
 }
 
 fn truth(dir: &Path) -> serde_json::Value {

@@ -158,6 +158,18 @@ fn diagnose_names_a_range_zero_error_and_the_rerun_closes_the_gap() {
     for f in ["diagnosis.json", "summary.md"] {
         assert!(d.join("diag").join(f).is_file(), "{f}");
     }
+    // The covariate plots and the before/after histograms: 900 x 560 px, data and text drawn.
+    assert!(
+        r.plots.iter().any(|f| f == "before_after.png"),
+        "{:?}",
+        r.plots
+    );
+    assert!(r.plots.len() > 1, "no covariate plot: {:?}", r.plots);
+    for f in &r.plots {
+        let p = crate::common::plot_pixels(&d.join("diag").join(f));
+        assert_eq!((p.width, p.height), (900, 560), "{f}");
+        assert!(p.black > 500 && p.first_series > 100, "{f}: blank?");
+    }
 }
 
 /// The command refuses what it cannot do before any work, saying what is missing.

@@ -1,7 +1,6 @@
 //! Sobol machinery against analytic indices, and the sensitivity study end to end.
 
 use kinescan::app::sensitivity::{load_sensitivity, run_sensitivity};
-use kinescan::plot::PALETTE;
 use kinescan::uncertainty::sobol::SaltelliDesign;
 use std::path::{Path, PathBuf};
 
@@ -130,22 +129,14 @@ fn check_plots(outputs: &[PathBuf], out: &Path) {
     }
     assert!(pngs.len() > 4, "no per-input plot");
     for path in pngs {
-        let decoder =
-            png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
-        let mut reader = decoder.read_info().unwrap();
-        let mut buf = vec![0; reader.output_buffer_size().unwrap()];
-        let info = reader.next_frame(&mut buf).unwrap();
-        assert_eq!((info.width, info.height), (1000, 700), "{}", path.display());
-        assert_eq!(info.color_type, png::ColorType::Rgb);
-        // The legend shows 91 px of each colour; the first factor's markers and line add more.
-        let n = buf[..info.buffer_size()]
-            .chunks_exact(3)
-            .filter(|px| *px == PALETTE[0])
-            .count();
+        let p = crate::common::plot_pixels(path);
+        assert_eq!((p.width, p.height), (1000, 700), "{}", path.display());
+        // The legend key shows under 100 px of each colour; the first factor's markers and line add more.
         assert!(
-            n > 200,
-            "{}: {n} pixels of the first factor",
-            path.display()
+            p.first_series > 200,
+            "{}: {} pixels of the first factor",
+            path.display(),
+            p.first_series
         );
     }
 }

@@ -185,3 +185,39 @@ pub fn one_pass_survey(dir: &Path, profiles: u32) {
     );
     std::fs::write(dir.join("pipeline.toml"), pipeline).unwrap();
 }
+
+/// What a written plot shows: its size and how many pixels are in the first palette colour
+/// (the first series' data and legend key) and black (text, frame).
+pub struct PlotPixels {
+    pub width: u32,
+    pub height: u32,
+    pub first_series: usize,
+    pub black: usize,
+}
+
+/// Decodes the 8-bit RGB PNG plot at `path` and counts its pixels. Set `KINESCAN_PLOT_OUT=dir`
+/// to keep a copy for a visual check.
+pub fn plot_pixels(path: &Path) -> PlotPixels {
+    let file = std::fs::File::open(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .unwrap();
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    let info = reader.next_frame(&mut buf).unwrap();
+    assert_eq!(info.color_type, png::ColorType::Rgb, "{}", path.display());
+    let count = |c: [u8; 3]| {
+        buf[..info.buffer_size()]
+            .chunks_exact(3)
+            .filter(|px| *px == c)
+            .count()
+    };
+    if let Some(keep) = std::env::var_os("KINESCAN_PLOT_OUT") {
+        std::fs::copy(path, Path::new(&keep).join(path.file_name().unwrap())).unwrap();
+    }
+    PlotPixels {
+        width: info.width,
+        height: info.height,
+        first_series: count(kinescan::plot::PALETTE[0]),
+        black: count([0, 0, 0]),
+    }
+}
