@@ -145,7 +145,27 @@ impl ReturnTerms {
         beta_rad: f64,
         range_total_m: f64,
     ) -> Self {
-        let (sin_cos_alpha, sin_cos_beta) = (alpha_rad.sin_cos(), beta_rad.sin_cos());
+        let trig = (alpha_rad.sin_cos(), beta_rad.sin_cos());
+        Self::of_trig(
+            r_n_to_e,
+            r_b_to_n,
+            lever_arm_b_m,
+            r_s_to_b,
+            trig,
+            range_total_m,
+        )
+    }
+
+    /// [`Self::new`] with the `(sin, cos)` of alpha and of the corrected beta given.
+    #[inline]
+    fn of_trig(
+        r_n_to_e: Matrix3<f64>,
+        r_b_to_n: Matrix3<f64>,
+        lever_arm_b_m: &Vector3<f64>,
+        r_s_to_b: &Matrix3<f64>,
+        (sin_cos_alpha, sin_cos_beta): ((f64, f64), (f64, f64)),
+        range_total_m: f64,
+    ) -> Self {
         let x_s_m = beam_of_trig(sin_cos_alpha, sin_cos_beta) * range_total_m;
         ReturnTerms {
             r_n_to_e,
@@ -158,23 +178,24 @@ impl ReturnTerms {
         }
     }
 
-    /// The terms of a return with recorded range `range_m` (m) and mirror angle `beta_rad`
-    /// (rad) georeferenced with `pose` and `sensor` (which applies `K`, `S` and `dbeta`).
+    /// The terms of a return with recorded range `range_m` (m), `(sin, cos)` of alpha and
+    /// recorded mirror angle `beta_rad` (rad) georeferenced with `pose` and `sensor` (which
+    /// applies `K`, `S` and `dbeta`). Alpha comes as its sine and cosine: a constant alpha0's
+    /// are computed once per run, not per return.
     #[inline]
     pub fn of_pose(
         pose: &Pose,
         sensor: &Sensor,
         range_m: f64,
-        alpha_rad: f64,
+        sin_cos_alpha: (f64, f64),
         beta_rad: f64,
     ) -> Self {
-        ReturnTerms::new(
+        ReturnTerms::of_trig(
             r_n_to_e(pose.nav.lat_rad, pose.nav.lon_rad),
             *pose.q_b_to_n.to_rotation_matrix().matrix(),
             &sensor.lever_arm_b_m,
             &sensor.r_s_to_b,
-            alpha_rad,
-            sensor.beta_rad(beta_rad),
+            (sin_cos_alpha, sensor.beta_rad(beta_rad).sin_cos()),
             sensor.range_total_m(range_m),
         )
     }
@@ -240,7 +261,7 @@ mod tests {
         for k in 0..100 {
             let (rho, beta) = (1.0 + k as f64 * 0.7, k as f64 * 0.063);
             let x = georeference(&pose, &sensor, &point_s(&sensor, rho, 0.002, beta));
-            let t = ReturnTerms::of_pose(&pose, &sensor, rho, 0.002, beta);
+            let t = ReturnTerms::of_pose(&pose, &sensor, rho, 0.002f64.sin_cos(), beta);
             assert_eq!(t.point_e(&nav.r_e_m), x);
         }
     }

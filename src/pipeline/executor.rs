@@ -132,9 +132,14 @@ impl BufferPool {
 /// A batch of chunk results, in input order.
 type Batch = Vec<(Range<usize>, Result<ChunkOut>)>;
 
+/// Chunks written but not yet hashed: bounds the mapped input pages still resident.
+const HASH_QUEUE_CHUNKS: usize = 16;
+
 /// Georeferences one profile file into `sink`. Batches of chunks are computed in parallel on
-/// the pool while a writer thread absorbs the previous batch (counts, checks, LAS, hash), so
-/// writing overlaps computing; results are absorbed strictly in input order.
+/// the pool while a writer thread absorbs the previous batch (counts, checks, LAS), so writing
+/// overlaps computing; results are absorbed strictly in input order. A third thread hashes
+/// the written chunks' input bytes (the report's SHA-256) and releases their pages, so the
+/// hash is off the writer's path.
 pub fn process_input(
     geo: &ReturnGeoreferencer,
     fill: &PointFill,
@@ -152,11 +157,15 @@ pub fn process_input(
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let mut acc = FileAccumulator::new(file, strictness);
     let pool = BufferPool::default();
-    std::thread::scope(|scope| {
+    let (hash_tx, hash_rx) = std::sync::mpsc::sync_channel::<Range<usize>>(HASH_QUEUE_CHUNKS);
+    let sha256 = std::thread::scope(|scope| {
+        let hasher = scope.spawn(|| hash_input(file, hash_rx));
         let writer = scope.spawn(|| -> Result<()> {
+            let hash_tx = hash_tx; // moved in: dropping it ends the hasher
             for batch in rx {
                 for (r, out) in batch {
-                    pool.give(acc.absorb(r, out, sink, bar)?);
+                    pool.give(acc.absorb(r.clone(), out, sink, bar)?);
+                    let _ = hash_tx.send(r); // the hasher stops only with the run
                 }
             }
             Ok(())
@@ -176,16 +185,28 @@ pub fn process_input(
             }
         }
         drop(tx);
-        writer.join().expect("writer thread panicked")
+        writer.join().expect("writer thread panicked")?;
+        Ok::<_, Error>(hasher.join().expect("hasher thread panicked"))
     })?;
-    acc.finish(input)
+    acc.finish(input, sha256)
+}
+
+/// SHA-256 (hex) of `file`'s header and of the record ranges received, in order; releases
+/// each range's pages once hashed (all of the file when every chunk was written).
+fn hash_input(file: &ProfileFile, ranges: std::sync::mpsc::Receiver<Range<usize>>) -> String {
+    let mut hasher = Sha256::new();
+    hasher.update(file.header_bytes());
+    for r in ranges {
+        hasher.update(file.record_bytes(r.clone()));
+        file.release(r);
+    }
+    super::report::hex(&hasher.finalize())
 }
 
 /// What the writer side learns about one profile file.
 struct FileAccumulator<'f> {
     file: &'f ProfileFile,
     strictness: Strictness,
-    hasher: Sha256,
     counts: ReturnCounts,
     counters: CounterTracker,
     span: Option<(f64, f64)>,
@@ -193,20 +214,17 @@ struct FileAccumulator<'f> {
 
 impl<'f> FileAccumulator<'f> {
     fn new(file: &'f ProfileFile, strictness: Strictness) -> Self {
-        let mut hasher = Sha256::new();
-        hasher.update(file.header_bytes());
         FileAccumulator {
             file,
             strictness,
-            hasher,
             counts: ReturnCounts::default(),
             counters: CounterTracker::default(),
             span: None,
         }
     }
 
-    /// Takes one chunk's result in input order: checks, counts, writes its records and hashes
-    /// its input; gives the emptied record buffer back for reuse.
+    /// Takes one chunk's result in input order: checks, counts, writes its records; gives the
+    /// emptied record buffer back for reuse.
     fn absorb(
         &mut self,
         r: Range<usize>,
@@ -237,13 +255,12 @@ impl<'f> FileAccumulator<'f> {
             self.span = Some(self.span.map_or((a, b), |(x, y)| (x.min(a), y.max(b))));
         }
         sink.write(&out.records, &out.stats)?;
-        self.hasher.update(self.file.record_bytes(r.clone()));
-        self.file.release(r.clone());
         bar.inc(r.len() as u64);
         Ok(out.records)
     }
 
-    fn finish(self, input: &PreparedInput) -> Result<InputReport> {
+    /// The input's report, `sha256` being the hex digest of the file as read.
+    fn finish(self, input: &PreparedInput, sha256: String) -> Result<InputReport> {
         let c = self.counts;
         debug_assert_eq!(c.read, c.written + c.rejected_total());
         let path = self.file.path();
@@ -257,7 +274,7 @@ impl<'f> FileAccumulator<'f> {
                 role: "profiles".into(),
                 path: path.into(),
                 bytes,
-                sha256: super::report::hex(&self.hasher.finalize()),
+                sha256,
             }
         };
         let t = self.counters;

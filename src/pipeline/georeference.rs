@@ -48,6 +48,8 @@ pub struct ReturnFilter {
     time_column: bool,
     /// Out-of-plane angle without an alpha column (rad).
     alpha0_rad: f64,
+    /// Its `(sin, cos)`, computed once.
+    alpha0_sin_cos: (f64, f64),
     /// Shortest accepted range (m).
     min_range_m: f64,
     /// Longest accepted range (m).
@@ -61,6 +63,7 @@ impl ReturnFilter {
             alpha_column: columns.alpha,
             time_column: columns.time,
             alpha0_rad: s.alpha0_deg.to_radians(),
+            alpha0_sin_cos: s.alpha0_deg.to_radians().sin_cos(),
             min_range_m: s.min_range_m,
             max_range_m: s.max_range_m,
         }
@@ -85,6 +88,16 @@ impl ReturnFilter {
             return Err(RejectReason::RangeOutOfLimits);
         }
         Ok(alpha)
+    }
+
+    /// `(sin, cos)` of a return's alpha given by [`Self::check`].
+    #[inline]
+    pub fn sin_cos_alpha(&self, alpha_rad: f64) -> (f64, f64) {
+        if self.alpha_column {
+            alpha_rad.sin_cos()
+        } else {
+            self.alpha0_sin_cos
+        }
     }
 }
 
@@ -263,7 +276,8 @@ impl<'a> ReturnGeoreferencer<'a> {
             Some((sigmas, _)) => Some(sigmas.at(t_s)?),
             None => None,
         };
-        let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, alpha_rad, r.beta_rad);
+        let sin_cos_alpha = self.filter.sin_cos_alpha(alpha_rad);
+        let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, sin_cos_alpha, r.beta_rad);
         let x_e_m = terms.point_e(&pose.nav.r_e_m);
         let x_map_m = cursors.projector.to_map(&pose.nav.r_e_m, &x_e_m)?;
         Ok(GeoreferencedReturn {

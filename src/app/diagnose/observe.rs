@@ -271,7 +271,13 @@ impl<'a> ReturnModel<'a> {
         }
         let (t_s, dt_dclock) = self.time_of(r);
         let pose = cursor.at(t_s).map_err(RejectReason::from)?;
-        let terms = ReturnTerms::of_pose(&pose, &self.sensor, r.range_m, alpha_rad, r.beta_rad);
+        let terms = ReturnTerms::of_pose(
+            &pose,
+            &self.sensor,
+            r.range_m,
+            alpha_rad.sin_cos(),
+            r.beta_rad,
+        );
         let x_e = terms.point_e(&pose.nav.r_e_m);
         Ok(Located {
             t_s,

@@ -184,7 +184,8 @@ pub fn encode_points(
                 ExtraType::F64 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
                 // Clamped to 0..=1 (NaN is stored as 0).
                 ExtraType::FractionU8 => {
-                    rec[at] = (v.clamp(0.0, 1.0) / FRACTION_SCALE).round() as u8;
+                    let q = v.clamp(0.0, 1.0) / FRACTION_SCALE;
+                    rec[at] = if q.is_nan() { 0 } else { round_small(q) as u8 };
                 }
             }
         }
@@ -193,11 +194,42 @@ pub fn encode_points(
     Ok(stats)
 }
 
+/// Bound below which [`round_small`] is exact (2^52: every such f64 has a fractional part
+/// representable exactly after its integer part is subtracted).
+const ROUND_SMALL_MAX: f64 = 4_503_599_627_370_496.0;
+
+/// `x.round()` (half away from zero) for `|x| < 2^52`, in integer arithmetic: the same value
+/// as `f64::round`, without its libm call.
+#[inline]
+fn round_small(x: f64) -> i64 {
+    debug_assert!(x.abs() < ROUND_SMALL_MAX);
+    let truncated = x as i64;
+    let fraction = x - truncated as f64; // exact for |x| < 2^52
+    if fraction >= 0.5 {
+        truncated + 1
+    } else if fraction <= -0.5 {
+        truncated - 1
+    } else {
+        truncated
+    }
+}
+
+/// `round((v - offset) / scale)` as i32; `None` beyond i32 or not finite.
+#[inline]
+fn counts_of(v: f64, scale: f64, offset: f64) -> Option<i32> {
+    let q = (v - offset) / scale;
+    // Beyond 2^32 the rounded value cannot be an i32 anyway (and NaN fails the test).
+    if q.abs() < 4_294_967_296.0 {
+        i32::try_from(round_small(q)).ok()
+    } else {
+        None
+    }
+}
+
 fn quantise(v: f64, axis: usize, layout: &PointLayout, index: usize) -> Result<i32> {
     let (scale, offset) = (layout.scale_m[axis], layout.offset_m[axis]);
-    let counts = ((v - offset) / scale).round();
-    if counts >= f64::from(i32::MIN) && counts <= f64::from(i32::MAX) {
-        return Ok(counts as i32);
+    if let Some(counts) = counts_of(v, scale, offset) {
+        return Ok(counts);
     }
     let name = ["X", "Y", "Z"][axis];
     if !v.is_finite() {
@@ -226,11 +258,65 @@ fn check_returns(p: &LasPoint, index: usize) -> Result<()> {
 }
 
 fn scan_angle_counts(deg: f64, index: usize) -> Result<i16> {
-    let counts = (deg / SCAN_ANGLE_UNIT_DEG).round();
-    if counts.abs() <= SCAN_ANGLE_MAX_COUNTS {
-        return Ok(counts as i16);
+    let q = deg / SCAN_ANGLE_UNIT_DEG;
+    // Within 2 * 30,000 counts `round_small` is exact; beyond, the angle is refused anyway.
+    if q.abs() < 2.0 * SCAN_ANGLE_MAX_COUNTS {
+        let counts = round_small(q);
+        if counts.abs() <= SCAN_ANGLE_MAX_COUNTS as i64 {
+            return Ok(counts as i16);
+        }
     }
     Err(Error::Invalid(format!(
         "LAS point {index} of the chunk: scan angle {deg} deg outside -180..=180 deg"
     )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The integer rounding gives `f64::round`'s value (output bytes depend on it), halves and
+    /// their neighbours included; and the i32 range check of the coordinates is unchanged.
+    #[test]
+    fn round_small_is_f64_round() {
+        let mut xs = vec![
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.5,
+            -1.5,
+            2.5,
+            -2.5,
+            0.49999999999999994,
+        ];
+        xs.extend([0.5f64.next_down(), 0.5f64.next_up(), (-0.5f64).next_up()]);
+        xs.extend([
+            2_147_483_647.5,
+            -2_147_483_648.5,
+            2_147_483_647.4,
+            -2_147_483_648.4,
+        ]);
+        xs.push(ROUND_SMALL_MAX.next_down());
+        let mut state = 0x2545_f491_4f6c_dd1d_u64; // fixed seed: reproducible sample
+        for k in 0..200_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1);
+            let unit = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
+            // Magnitudes 1 to 1e12, and exact halves.
+            let x = unit * 10f64.powi(k % 13);
+            xs.extend([x, x.trunc() + 0.5, x.trunc() - 0.5]);
+        }
+        for x in xs {
+            assert_eq!(round_small(x) as f64, x.round(), "x = {x:e}");
+            let before = x.round();
+            let expect = (before >= f64::from(i32::MIN) && before <= f64::from(i32::MAX))
+                .then_some(before as i32);
+            assert_eq!(counts_of(x, 1.0, 0.0), expect, "x = {x:e}");
+        }
+        for x in [f64::NAN, f64::INFINITY, -1e20, 4_294_967_296.0] {
+            assert_eq!(counts_of(x, 1.0, 0.0), None);
+        }
+    }
 }
