@@ -8,9 +8,12 @@
 //! RSS from the run reports, and of the per-repetition ratios with their min-max spread (the
 //! machine's noise).
 //!
+//! Then the LAZ case ([`laz_case`]): `output.format = "laz"` against the same run writing LAS,
+//! and LAZ on 1 against 2 threads, alternated, with the compression stage's own time.
+//!
 //! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
 //! `KINESCAN_BENCH_REPS` to change them; `KINESCAN_BENCH_DIR=DIR` to keep the generated survey
-//! for profiling. See docs/performance.md.
+//! for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case alone. See docs/performance.md.
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
@@ -156,6 +159,7 @@ fn run_once(dir: &Path, file: &str, threads: usize) -> (f64, f64, f64) {
     // Each run starts from the same state: replacing a multi-GB LAS still in the page cache
     // makes the kernel's write copy 2-3x slower on a small VM, whichever run came before.
     let _ = std::fs::remove_file(dir.join("out/cloud.las"));
+    let _ = std::fs::remove_file(dir.join("out/cloud.laz"));
     let started = std::time::Instant::now();
     let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
         .args(["--quiet", "run", file, "--threads", &threads.to_string()])
@@ -225,6 +229,9 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
+    if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "laz") {
+        return laz_case(dir, reps);
+    }
     // The floor writes as many bytes as the run without uncertainty (the 3.0x criterion's run).
     run_once(dir, "pipeline.toml", 2);
     let las_bytes = std::fs::metadata(dir.join("out/cloud.las")).unwrap().len();
@@ -275,4 +282,46 @@ fn main() {
             fmt_ratio(ratio_stats(&walls[k], &walls[k + files.len()]))
         );
     }
+    laz_case(dir, reps);
+}
+
+/// `output.format = "laz"` against LAS (both on 2 threads) and LAZ on 1 against 2 threads,
+/// alternated in every repetition: medians of the wall times, of the compression stage
+/// (`stages.compress` of the report) and the sizes.
+fn laz_case(dir: &Path, reps: usize) {
+    let las = std::fs::read_to_string(dir.join("pipeline.toml")).unwrap();
+    let laz = las.replace("[output]\n", "[output]\nformat = \"laz\"\n");
+    std::fs::write(dir.join("laz.toml"), laz).unwrap();
+    let configs = [("pipeline.toml", 2), ("laz.toml", 2), ("laz.toml", 1)];
+    let (mut walls, mut compress_s, mut bytes) = (vec![Vec::new(); 3], vec![Vec::new(); 3], [0; 3]);
+    for _ in 0..reps {
+        for (k, (file, threads)) in configs.iter().enumerate() {
+            walls[k].push(run_once(dir, file, *threads).1);
+            let report = std::fs::read(dir.join("out/cloud.report.json")).unwrap();
+            let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
+            let stages = report["stages"].as_array().unwrap();
+            let compress = stages.iter().find(|s| s["stage"] == "compress");
+            compress_s[k].push(compress.map_or(0.0, |s| s["seconds"].as_f64().unwrap()));
+            bytes[k] = report["outputs"][0]["bytes"].as_u64().unwrap();
+        }
+    }
+    println!("LAZ case, medians of {reps} alternated repetitions; [min-max] of the ratios");
+    for (k, (file, threads)) in configs.iter().enumerate() {
+        println!(
+            "{file}, {threads} thread(s): {:.3} s, compress stage {:.3} s, {:.1} MB",
+            median(walls[k].clone()),
+            median(compress_s[k].clone()),
+            bytes[k] as f64 / 1e6
+        );
+    }
+    println!(
+        "LAZ / LAS (2 threads): wall {}, size {:.3}",
+        fmt_ratio(ratio_stats(&walls[1], &walls[0])),
+        bytes[1] as f64 / bytes[0] as f64
+    );
+    println!(
+        "LAZ 2 threads / 1 thread speed-up: wall {}, compress stage {}",
+        fmt_ratio(ratio_stats(&walls[2], &walls[1])),
+        fmt_ratio(ratio_stats(&compress_s[2], &compress_s[1]))
+    );
 }
