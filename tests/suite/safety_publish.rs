@@ -396,6 +396,34 @@ fn two_concurrent_runs_never_leave_a_las_and_a_report_of_different_runs() {
     );
 }
 
+/// Unmounts a test's tmpfs when dropped.
+#[cfg(target_os = "linux")]
+struct Tmpfs<'a>(&'a Path);
+
+#[cfg(target_os = "linux")]
+impl Drop for Tmpfs<'_> {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.0).status();
+    }
+}
+
+/// Mounts a tmpfs of `size_kib` KiB on the existing folder `dir`; None (with the reason
+/// printed as a skip of `test`) where the test cannot mount one.
+#[cfg(target_os = "linux")]
+fn mount_tmpfs<'a>(dir: &'a Path, size_kib: u64, test: &str) -> Option<Tmpfs<'a>> {
+    let mounted = Command::new("mount")
+        .args(["-t", "tmpfs", "-o", &format!("size={size_kib}k"), "tmpfs"])
+        .arg(dir)
+        .output();
+    match mounted {
+        Ok(o) if o.status.success() => Some(Tmpfs(dir)),
+        other => {
+            eprintln!("SKIPPED {test}: cannot mount a tmpfs ({other:?})");
+            None
+        }
+    }
+}
+
 #[cfg(target_os = "linux")]
 #[test]
 fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
@@ -404,26 +432,9 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
     let out = d.join("out");
     std::fs::create_dir(&out).unwrap();
     // 1 MiB: room for the first run's outputs (1,800 points), not for the second's (36,000).
-    let mounted = Command::new("mount")
-        .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs"])
-        .arg(&out)
-        .output();
-    match mounted {
-        Ok(o) if o.status.success() => {}
-        other => {
-            eprintln!(
-                "SKIPPED a_full_disk_keeps_the_old_outputs: cannot mount a tmpfs ({other:?})"
-            );
-            return;
-        }
-    }
-    struct Unmount<'a>(&'a Path);
-    impl Drop for Unmount<'_> {
-        fn drop(&mut self) {
-            let _ = Command::new("umount").arg(self.0).status();
-        }
-    }
-    let _unmount = Unmount(&out);
+    let Some(_tmpfs) = mount_tmpfs(&out, 1024, "a_full_disk_keeps_the_old_outputs") else {
+        return;
+    };
     common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
     let before = tree(&out);
@@ -445,5 +456,57 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
     );
     assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
     assert_eq!(tree(&out), before, "the failed run changed the outputs");
+    assert_no_temp(&out);
+}
+
+/// Pages (4 KiB, tmpfs's block) a file of `bytes` occupies.
+fn pages(bytes: u64) -> u64 {
+    bytes.div_ceil(4096)
+}
+
+/// The disk fills at the report: a tmpfs sized from a first run's measured LAS and report so
+/// that the old outputs and the new LAS fit but the new report does not (it gets half its
+/// pages). The run fails naming the report, the old LAS and report stay byte for byte, no
+/// temporary is left, and the next run that fits publishes.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_disk_full_at_the_report_keeps_the_old_las_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::one_pass_survey(d, 50);
+    assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
+    let size = |f: &str| std::fs::metadata(d.join("out").join(f)).unwrap().len();
+    let (las, report) = (pages(size("day.las")), pages(size("day.report.json")));
+    std::fs::remove_dir_all(d.join("out")).unwrap();
+    let out = d.join("out");
+    std::fs::create_dir(&out).unwrap();
+    // Old LAS and report, the new LAS, and half the new report's pages.
+    let kib = 4 * (2 * las + report + report / 2);
+    let Some(_tmpfs) = mount_tmpfs(&out, kib, "a_disk_full_at_the_report") else {
+        return;
+    };
+    assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
+    let before = tree(&out);
+    let o = kinescan(d, &["run", "pipeline.toml"]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("out/day.report.json") && e.matches("No space left").count() == 1,
+        "{e}"
+    );
+    assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
+    assert_eq!(tree(&out), before, "the failed run changed the outputs");
+    assert_no_temp(&out);
+    // The next run, with fewer points, fits and publishes its own set.
+    profiles(&d.join("small.ksprof"), 10, |_, _| {});
+    let small = [
+        "run",
+        "pipeline.toml",
+        "--set",
+        "inputs.profiles=[\"small.ksprof\"]",
+    ];
+    let o = kinescan(d, &small);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(tree(&out), before);
     assert_no_temp(&out);
 }
