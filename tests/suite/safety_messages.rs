@@ -48,6 +48,14 @@ fn bad_values_name_their_key() {
             "time.period_s=1e-300",
             "key `time.period_s`: must be in [0.0001, 1] s, got 1e-300",
         ),
+        (
+            "sensor.lever_arm_b_m=[0,nan,0]",
+            "key `sensor.lever_arm_b_m[1]`: must be a finite number, got NaN",
+        ),
+        (
+            "latency.position_s=2",
+            "key `latency.position_s`: must be finite and below 1 s in magnitude, got 2",
+        ),
     ];
     for (set, want) in cases {
         for cmd in ["run", "validate"] {

@@ -336,7 +336,7 @@ fn bad_uncertainty_tables_are_refused() {
         ),
         (
             text.replace("sigma_range_m = 0.008", "sigma_range_m = -0.008"),
-            "uncertainty",
+            "uncertainty.sigma_range_m",
         ),
         (
             text.replace("-1e-12, 1e-15", "-1e-10, 1e-15"),

@@ -2,7 +2,7 @@
 //! sigmas, and either flat-ground points or a simulated scenario.
 
 use crate::io::config_file::{self, ConfigPath};
-use crate::pipeline::config::UncertaintyConfig;
+use crate::pipeline::config::{Refusal, UncertaintyConfig};
 use crate::uncertainty::UncertaintyInputs;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Vector3};
@@ -186,19 +186,19 @@ pub fn load_sensitivity(path: &Path) -> Result<SensitivityConfig> {
     Ok(parsed.value)
 }
 
-fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, String)> {
+fn validate(c: &SensitivityConfig) -> std::result::Result<(), Refusal> {
     if c.sigma_set == SigmaSet::Custom {
         c.custom
             .as_ref()
             .ok_or((
-                "custom",
+                "custom".to_string(),
                 "sigma_set = \"custom\" needs a [custom] table".into(),
             ))?
-            .check()?;
+            .check("custom")?;
     }
     if !(64..=1 << 22).contains(&c.samples) || c.bootstrap == 1 {
         return Err((
-            "samples",
+            "samples".into(),
             "samples must be in 64..=4194304 and bootstrap 0 or >= 2".into(),
         ));
     }
@@ -211,7 +211,7 @@ fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, Str
     let timing = [t.sigma_clock_time_s, t.sigma_attitude_latency_s];
     if !ins.chain(&timing).all(|s| s.is_finite() && *s >= 0.0) {
         return Err((
-            "ins",
+            "ins".into(),
             "INS and timing sigmas must be finite and >= 0".into(),
         ));
     }
@@ -219,18 +219,18 @@ fn validate(c: &SensitivityConfig) -> std::result::Result<(), (&'static str, Str
         (Some(sc), None, None, None) => validate_scenario(sc),
         (None, Some(_), Some(_), Some(p)) => {
             if c.ins.is_none() {
-                return Err(("ins", "flat ground needs [ins]".into()));
+                return Err(("ins".into(), "flat ground needs [ins]".into()));
             }
             validate_points(p)
         }
         _ => Err((
-            "scenario",
+            "scenario".into(),
             "give either [scenario] or all of [platform], [sensor], [points]".into(),
         )),
     }
 }
 
-fn validate_points(p: &PointsConfig) -> std::result::Result<(), (&'static str, String)> {
+fn validate_points(p: &PointsConfig) -> std::result::Result<(), Refusal> {
     let ok = p.scanner_height_m > 0.0
         && p.range_m[0] >= p.scanner_height_m
         && p.range_m[1] >= p.range_m[0]
@@ -238,14 +238,14 @@ fn validate_points(p: &PointsConfig) -> std::result::Result<(), (&'static str, S
         && p.count >= 1;
     if !ok {
         return Err((
-            "points",
+            "points".into(),
             "need 0 < scanner_height_m <= range_m[0] <= range_m[1] and count >= 1".into(),
         ));
     }
     Ok(())
 }
 
-fn validate_scenario(s: &ScenarioPointsConfig) -> std::result::Result<(), (&'static str, String)> {
+fn validate_scenario(s: &ScenarioPointsConfig) -> std::result::Result<(), Refusal> {
     let ok = s.range_m[0] >= 0.0
         && s.range_m[1] > s.range_m[0]
         && s.range_m[1].is_finite()
@@ -253,7 +253,7 @@ fn validate_scenario(s: &ScenarioPointsConfig) -> std::result::Result<(), (&'sta
         && s.duration_s.is_none_or(|d| d > 0.0 && d.is_finite());
     if !ok {
         return Err((
-            "scenario",
+            "scenario".into(),
             "need 0 <= range_m[0] < range_m[1], count >= 1 and duration_s > 0".into(),
         ));
     }

@@ -1,6 +1,6 @@
 //! `[diagnose]`: the options of `kinescan diagnose` (docs/diagnosis.md).
 
-use super::refusal::{require_positive, Refusal};
+use super::refusal::{refuse, require_positive, Refusal};
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 
@@ -95,21 +95,27 @@ impl DiagnoseConfig {
             ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
             ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
         ];
-        require_positive(&positive)?;
+        require_positive(positive)?;
         if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
             let v = self.edge_margin_m;
-            return Err(("diagnose.edge_margin_m", format!("must be >= 0, got {v}")));
+            return Err(refuse(
+                "diagnose.edge_margin_m",
+                format!("must be >= 0, got {v}"),
+            ));
         }
         if self.min_per_visit < 2 || self.max_per_visit < self.min_per_visit {
             let problem = format!(
                 "need 2 <= min_per_visit <= max_per_visit, got {} and {}",
                 self.min_per_visit, self.max_per_visit
             );
-            return Err(("diagnose.max_per_visit", problem));
+            return Err(refuse("diagnose.max_per_visit", problem));
         }
         if !(self.alpha > 0.0 && self.alpha < 0.5) {
             let v = self.alpha;
-            return Err(("diagnose.alpha", format!("must be in (0, 0.5), got {v}")));
+            return Err(refuse(
+                "diagnose.alpha",
+                format!("must be in (0, 0.5), got {v}"),
+            ));
         }
         Ok(())
     }

@@ -1,6 +1,6 @@
 //! `[inputs]` (what is read) and `[trajectory]` (how the trajectory is interpolated).
 
-use super::refusal::Refusal;
+use super::refusal::{refuse, require_finite, require_positive, Refusal};
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 
@@ -61,7 +61,7 @@ impl InputsConfig {
     pub(super) fn check(&self) -> Result<(), Refusal> {
         if self.profiles.is_empty() {
             let problem = "at least one profile file is required";
-            return Err(("inputs.profiles", problem.into()));
+            return Err(refuse("inputs.profiles", problem));
         }
         Ok(())
     }
@@ -70,16 +70,8 @@ impl InputsConfig {
 impl TrajectoryConfig {
     /// Checks the gap limit and the heading offset.
     pub(super) fn check(&self) -> Result<(), Refusal> {
-        if !(self.max_gap_s.is_finite() && self.max_gap_s > 0.0) {
-            let v = self.max_gap_s;
-            return Err(("trajectory.max_gap_s", format!("must be > 0, got {v}")));
-        }
-        if !self.heading_offset_deg.is_finite() {
-            let v = self.heading_offset_deg;
-            let problem = format!("must be a finite number, got {v}");
-            return Err(("trajectory.heading_offset_deg", problem));
-        }
-        Ok(())
+        require_positive([("trajectory.max_gap_s", self.max_gap_s)])?;
+        require_finite([("trajectory.heading_offset_deg", self.heading_offset_deg)])
     }
 }
 

@@ -23,6 +23,7 @@ mod uncertainty;
 pub use diagnose::DiagnoseConfig;
 pub use inputs::{InputsConfig, TrajectoryConfig};
 pub use output::{FrameConfig, OutputConfig, OutputFormat, SplitMode, Strictness};
+use refusal::refuse;
 pub use refusal::Refusal;
 pub use sensor::{LatencyConfig, SensorConfig, TimeConfig, MIN_PERIOD_S};
 pub use sync::SyncConfig;
@@ -105,14 +106,14 @@ fn check(c: &PipelineConfig) -> std::result::Result<(), Refusal> {
     let t = &c.time;
     if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) && c.sync.is_none() {
         let problem = "the software time model needs t0_s (or a sync stage)";
-        return Err(("time.t0_s", problem.into()));
+        return Err(refuse("time.t0_s", problem));
     }
     c.latency.check()?;
     if let Some(u) = &c.uncertainty {
-        u.check()?;
+        u.check("uncertainty")?;
         if c.inputs.smrmsg.is_none() {
             let problem = "[uncertainty] needs the SMRMSG file (INS position and attitude sigmas)";
-            return Err(("inputs.smrmsg", problem.into()));
+            return Err(refuse("inputs.smrmsg", problem));
         }
     }
     c.output.check()

@@ -1,6 +1,6 @@
 //! `[output]`: the map frame, the LAS file(s) and what they hold.
 
-use super::refusal::Refusal;
+use super::refusal::{refuse, require_finite, Refusal};
 use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
 use crate::io::config_file::ConfigPath;
@@ -152,21 +152,20 @@ impl OutputConfig {
         if !(self.scale_m > 0.0 && self.scale_m <= 1e-3) {
             let v = self.scale_m;
             let problem = format!("must be in (0, 0.001] m (quantisation <= 0.5 mm), got {v}");
-            return Err(("output.scale_m", problem));
+            return Err(refuse("output.scale_m", problem));
         }
-        if let Some(v) = self.offset_m.filter(|v| !v.iter().all(|x| x.is_finite())) {
-            let problem = format!("must be three finite numbers, got {v:?}");
-            return Err(("output.offset_m", problem));
+        if let Some(offset) = &self.offset_m {
+            require_finite(super::refusal::elements("output.offset_m", offset))?;
         }
         if self.split == SplitMode::MaxPoints && self.max_points_per_file.is_none_or(|n| n == 0) {
             let problem = "split = \"max_points\" needs max_points_per_file > 0";
-            return Err(("output.max_points_per_file", problem.into()));
+            return Err(refuse("output.max_points_per_file", problem));
         }
         if self.geoid.is_some() && matches!(self.frame, FrameConfig::Ecef | FrameConfig::Enu { .. })
         {
             let problem = "orthometric heights need a frame whose Z is a height above the \
                            ellipsoid: frame kind \"utm\" or \"epsg\" (ECEF Z and local Up are not)";
-            return Err(("output.geoid", problem.into()));
+            return Err(refuse("output.geoid", problem));
         }
         self.frame.check()
     }
@@ -176,7 +175,7 @@ impl FrameConfig {
     /// Checks the zone, the local origin or the EPSG code.
     fn check(&self) -> Result<(), Refusal> {
         match *self {
-            FrameConfig::Utm { zone: Some(z), .. } if !(1..=60).contains(&z) => Err((
+            FrameConfig::Utm { zone: Some(z), .. } if !(1..=60).contains(&z) => Err(refuse(
                 "output.frame.zone",
                 format!("UTM zone must be 1..60, got {z}"),
             )),
@@ -187,20 +186,23 @@ impl FrameConfig {
             } => {
                 if !(-90.0..=90.0).contains(&lat_deg) {
                     let problem = format!("must be in [-90, 90] deg, got {lat_deg}");
-                    return Err(("output.frame.lat_deg", problem));
+                    return Err(refuse("output.frame.lat_deg", problem));
                 }
                 if !(-180.0..=180.0).contains(&lon_deg) {
                     let problem = format!("must be in [-180, 180] deg, got {lon_deg}");
-                    return Err(("output.frame.lon_deg", problem));
+                    return Err(refuse("output.frame.lon_deg", problem));
                 }
                 if !h_m.is_finite() {
-                    return Err(("output.frame.h_m", format!("must be finite, got {h_m}")));
+                    return Err(refuse(
+                        "output.frame.h_m",
+                        format!("must be finite, got {h_m}"),
+                    ));
                 }
                 Ok(())
             }
             FrameConfig::Epsg { code } => EpsgCrs::get(code)
                 .map(drop)
-                .map_err(|why| ("output.frame.code", why)),
+                .map_err(|why| refuse("output.frame.code", why)),
             _ => Ok(()),
         }
     }

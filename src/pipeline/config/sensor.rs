@@ -1,7 +1,7 @@
 //! The scanner: `[sensor]` (mounting, intrinsics, range limits), `[time]` (its clock) and
 //! `[latency]` (IMU-to-scanner latencies).
 
-use super::refusal::Refusal;
+use super::refusal::{elements, refuse, require_finite, Refusal};
 use crate::timing::{MirrorDirection, TimeModel};
 use serde::{Deserialize, Serialize};
 
@@ -100,28 +100,21 @@ pub const MIN_PERIOD_S: f64 = 1e-4;
 impl SensorConfig {
     /// Checks that every value is finite and the range limits ordered.
     pub(super) fn check(&self) -> Result<(), Refusal> {
-        let all_finite = self
-            .lever_arm_b_m
-            .iter()
-            .chain(&self.boresight_deg)
-            .chain(&[self.alpha0_deg, self.range_zero_m])
-            .all(|v| v.is_finite());
-        if !all_finite {
-            let problem = "lever arm, boresight, alpha0 and range zero must be finite";
-            return Err(("sensor", problem.into()));
-        }
+        let scalars = [
+            ("sensor.alpha0_deg", self.alpha0_deg),
+            ("sensor.range_zero_m", self.range_zero_m),
+            ("sensor.range_scale_ppm", self.range_scale_ppm),
+            ("sensor.encoder_offset_deg", self.encoder_offset_deg),
+        ];
+        require_finite(
+            elements("sensor.lever_arm_b_m", &self.lever_arm_b_m)
+                .chain(elements("sensor.boresight_deg", &self.boresight_deg))
+                .chain(scalars.map(|(k, v)| (k.to_string(), v))),
+        )?;
         let (min, max) = (self.min_range_m, self.max_range_m);
         if !(min >= 0.0 && max > min && max.is_finite()) {
             let problem = format!("need 0 <= min_range_m < max_range_m, got {min} and {max}");
-            return Err(("sensor.max_range_m", problem));
-        }
-        for (key, v) in [
-            ("sensor.range_scale_ppm", self.range_scale_ppm),
-            ("sensor.encoder_offset_deg", self.encoder_offset_deg),
-        ] {
-            if !v.is_finite() {
-                return Err((key, format!("must be a finite number, got {v}")));
-            }
+            return Err(refuse("sensor.max_range_m", problem));
         }
         Ok(())
     }
@@ -132,21 +125,25 @@ impl TimeConfig {
     pub(super) fn check(&self) -> Result<(), Refusal> {
         if !(MIN_PERIOD_S..=1.0).contains(&self.period_s) {
             let problem = format!("must be in [{MIN_PERIOD_S}, 1] s, got {:?}", self.period_s);
-            return Err(("time.period_s", problem));
+            return Err(refuse("time.period_s", problem));
         }
-        if let Some(t0) = self.t0_s.filter(|v| !v.is_finite()) {
-            return Err(("time.t0_s", format!("must be a finite number, got {t0}")));
-        }
-        Ok(())
+        require_finite(self.t0_s.map(|t0| ("time.t0_s", t0)))
     }
 }
 
 impl LatencyConfig {
     /// Checks both latencies are finite and below 1 s in magnitude.
     pub(super) fn check(&self) -> Result<(), Refusal> {
-        if !(self.attitude_s.abs() < 1.0 && self.position_s.abs() < 1.0) {
-            let problem = "latencies must be finite and below 1 s in magnitude";
-            return Err(("latency", problem.into()));
+        for (key, v) in [
+            ("latency.attitude_s", self.attitude_s),
+            ("latency.position_s", self.position_s),
+        ] {
+            if !(v.abs() < 1.0) {
+                return Err(refuse(
+                    key,
+                    format!("must be finite and below 1 s in magnitude, got {v}"),
+                ));
+            }
         }
         Ok(())
     }

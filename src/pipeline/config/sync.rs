@@ -1,6 +1,6 @@
 //! `[sync]`: object-space time synchronisation before georeferencing (docs/sync.md).
 
-use super::refusal::{require_positive, Refusal};
+use super::refusal::{refuse, require_positive, Refusal};
 use super::sensor::TimeConfig;
 use crate::io::config_file::ConfigPath;
 use crate::timing::TimeModel;
@@ -78,16 +78,15 @@ impl SyncConfig {
     /// Checks the approximate clock (from here or `[time]`) and the detection settings.
     pub(super) fn check(&self, t: &TimeConfig) -> Result<(), Refusal> {
         if t.model != TimeModel::Software {
-            return Err((
+            return Err(refuse(
                 "sync",
-                "object-space sync estimates the software clock: needs time.model = \"software\""
-                    .into(),
+                "object-space sync estimates the software clock: needs time.model = \"software\"",
             ));
         }
         if !self.t0_approx_s.or(t.t0_s).is_some_and(f64::is_finite) {
-            return Err((
+            return Err(refuse(
                 "sync.t0_approx_s",
-                "an approximate t0 is needed (sync.t0_approx_s or time.t0_s)".into(),
+                "an approximate t0 is needed (sync.t0_approx_s or time.t0_s)",
             ));
         }
         let checks = [
@@ -101,11 +100,11 @@ impl SyncConfig {
                 self.period_approx_s.unwrap_or(t.period_s),
             ),
         ];
-        require_positive(&checks)?;
+        require_positive(checks)?;
         if self.estimate_latency && self.method == crate::sync::Method::Paper {
-            return Err((
+            return Err(refuse(
                 "sync.estimate_latency",
-                "the latency is estimated by method = \"refined\" only".into(),
+                "the latency is estimated by method = \"refined\" only",
             ));
         }
         Ok(())

@@ -1,6 +1,6 @@
 //! `[uncertainty]`: the 1-sigma inputs of the per-point uncertainty (docs/uncertainty.md).
 
-use super::refusal::Refusal;
+use super::refusal::{elements, refuse, require_non_negative, Refusal};
 use serde::{Deserialize, Serialize};
 
 /// `[uncertainty]`: 1-sigma of the inputs not in the SMRMSG file (conventions §5). Every sigma must be
@@ -51,23 +51,24 @@ impl UncertaintyConfig {
     }
 
     /// Checks sigmas are finite and >= 0 and the clock covariance symmetric positive
-    /// semi-definite; `Err(key, problem)`.
-    pub fn check(&self) -> Result<(), Refusal> {
+    /// semi-definite; keys are named under `table` (`uncertainty` in a pipeline file).
+    pub fn check(&self, table: &str) -> Result<(), Refusal> {
         let scalars = [
-            self.sigma_alpha_deg,
-            self.sigma_beta_deg,
-            self.sigma_range_m,
-            self.sigma_range_zero_m,
-            self.sigma_attitude_latency_s,
+            ("sigma_alpha_deg", self.sigma_alpha_deg),
+            ("sigma_beta_deg", self.sigma_beta_deg),
+            ("sigma_range_m", self.sigma_range_m),
+            ("sigma_range_zero_m", self.sigma_range_zero_m),
+            ("sigma_attitude_latency_s", self.sigma_attitude_latency_s),
         ];
-        let mut sigmas = self
-            .sigma_lever_arm_b_m
-            .iter()
-            .chain(&self.sigma_boresight_deg)
-            .chain(&scalars);
-        if !sigmas.all(|s| s.is_finite() && *s >= 0.0) {
-            return Err(("uncertainty", "every sigma must be finite and >= 0".into()));
-        }
+        let (lever, boresight) = (
+            format!("{table}.sigma_lever_arm_b_m"),
+            format!("{table}.sigma_boresight_deg"),
+        );
+        require_non_negative(
+            elements(&lever, &self.sigma_lever_arm_b_m)
+                .chain(elements(&boresight, &self.sigma_boresight_deg))
+                .chain(scalars.map(|(k, v)| (format!("{table}.{k}"), v))),
+        )?;
         let c = self.clock_covariance_s2;
         let psd = c.iter().flatten().all(|v| v.is_finite())
             && c[0][1] == c[1][0]
@@ -76,7 +77,7 @@ impl UncertaintyConfig {
             && c[0][0] * c[1][1] >= c[0][1] * c[0][1];
         if !psd {
             let msg = format!("must be symmetric positive semi-definite, got {c:?}");
-            return Err(("uncertainty.clock_covariance_s2", msg));
+            return Err(refuse(format!("{table}.clock_covariance_s2"), msg));
         }
         Ok(())
     }
