@@ -138,7 +138,7 @@ impl LatencyConfig {
             ("latency.attitude_s", self.attitude_s),
             ("latency.position_s", self.position_s),
         ] {
-            if !(v.abs() < 1.0) {
+            if !v.is_finite() || v.abs() >= 1.0 {
                 return Err(refuse(
                     key,
                     format!("must be finite and below 1 s in magnitude, got {v}"),
