@@ -4,7 +4,7 @@
 Usage:
   python3 tests/laspy_check.py FILE.las --expect-epsg 32632 \
       --expect-dims sigma_x,sigma_y,sigma_z --expect-count 5000 [--expect-gps-time adjusted|week] \
-      [--expect-shares share_a,share_b,...]
+      [--expect-shares share_a,share_b,...] [--expect-vertical "geoid.gtx height"]
 
 Needs `pip install 'laspy[lazrs]' pyproj`. Exits non-zero, naming every failed check, if laspy
 warns (warnings module or its logger), if the version is not 1.4 or the point format not 6, if
@@ -13,7 +13,9 @@ the point count differs, if header bounds differ from the points', if legacy cou
 zero, or if the GPS time type bit disagrees with the expectation or with the
 stored times (week seconds must lie in [0, 604800]). With --expect-shares: each named dimension
 must be a scaled integer that laspy decodes to fractions in [0, 1], and per point they must sum
-to 1 within the storage rounding (half a step, 0.002, per dimension) or all be 0.
+to 1 within the storage rounding (half a step, 0.002, per dimension) or all be 0. With
+--expect-vertical: the CRS must be compound, its horizontal part the EPSG code and its vertical
+part a vertical CRS of that name (orthometric heights, output.geoid).
 """
 
 import argparse
@@ -37,7 +39,7 @@ class _Collect(logging.Handler):
 SHARE_STEP = 0.004
 
 
-def check(path, epsg, dims, count, gps_time, shares=()):
+def check(path, epsg, dims, count, gps_time, shares=(), vertical=None):
     import laspy  # imported here so a missing package is reported as a failure, not a trace
 
     failures = []
@@ -79,6 +81,12 @@ def check(path, epsg, dims, count, gps_time, shares=()):
         off = np.abs(total - 1.0) > len(shares) * SHARE_STEP / 2 + 1e-9
         if np.any(off & (total != 0)):
             failures.append(f"{int(np.sum(off & (total != 0)))} points whose shares do not sum to 1")
+    if crs is not None and vertical is not None:
+        parts = crs.sub_crs_list if crs.is_compound else []
+        if len(parts) != 2 or not parts[1].is_vertical or parts[1].name != vertical:
+            failures.append(f"CRS is not compound with the vertical CRS {vertical!r}: {crs.name}")
+        else:
+            crs = parts[0]
     if crs is None:
         failures.append("parse_crs() found no CRS")
     elif crs.to_epsg() != epsg:
@@ -113,12 +121,13 @@ def main():
     ap.add_argument("--expect-count", type=int)
     ap.add_argument("--expect-gps-time", choices=["adjusted", "week"])
     ap.add_argument("--expect-shares", default="", help="comma-separated share dimension names")
+    ap.add_argument("--expect-vertical", help="name of the vertical CRS of a compound CRS")
     args = ap.parse_args()
     dims = [d for d in args.expect_dims.split(",") if d]
     shares = [d for d in args.expect_shares.split(",") if d]
     try:
         failures = check(args.file, args.expect_epsg, dims, args.expect_count,
-                         args.expect_gps_time, shares)
+                         args.expect_gps_time, shares, args.expect_vertical)
     except Exception as e:  # noqa: BLE001 - any reader failure is a check failure
         failures = [f"{type(e).__name__}: {e}"]
     for f in failures:

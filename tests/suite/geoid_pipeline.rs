@@ -1,6 +1,8 @@
 //! `output.geoid` in the pipeline: orthometric heights H = h - N from the committed test grid
 //! (tests/data/geoid_test.gtx, tests/oracle/make_geoid_oracle.py), the compound WKT, the run
-//! report, the uncertainty unchanged, and the refusals before any point is processed.
+//! report, the uncertainty unchanged, and the refusals before any point is processed. Set
+//! `KINESCAN_GEOID_OUT=/dir` to keep `ortho.las` for tests/laspy_check.py (pyproj reads its
+//! compound CRS, in CI).
 
 use crate::common;
 use crate::pipeline_roundtrip::fixture;
@@ -105,14 +107,14 @@ fn orthometric_heights_are_h_minus_n_and_nothing_else_changes() {
     // the lat/lon expansion's < 25 um (module docs of geo::local).
     assert!(worst <= 1e-4, "worst {worst} m");
 
-    let wkt = las::Reader::from_path(f.dir.path().join("out/ortho.las"))
-        .unwrap()
-        .header()
-        .vlrs()
-        .iter()
-        .find(|v| v.record_id == 2112)
-        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+    let wkt = common::las_wkt(&f.dir.path().join("out/ortho.las"));
+    if let Some(keep) = std::env::var_os("KINESCAN_GEOID_OUT") {
+        std::fs::copy(
+            f.dir.path().join("out/ortho.las"),
+            Path::new(&keep).join("ortho.las"),
+        )
         .unwrap();
+    }
     assert!(
         wkt.starts_with("COMPD_CS[\"WGS 84 / UTM zone 32N + geoid_test.gtx height\",PROJCS["),
         "{wkt}"

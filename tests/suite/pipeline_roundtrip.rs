@@ -594,14 +594,7 @@ fn epsg_frame_points_come_back_to_a_tenth_of_a_millimetre() {
     }
     // Same bound and reasoning as for UTM above.
     assert!(worst <= 1e-4, "worst 3D error {worst} m");
-    let wkt = las::Reader::from_path(f.dir.path().join("out/cloud.las"))
-        .unwrap()
-        .header()
-        .vlrs()
-        .iter()
-        .find(|v| v.record_id == 2112)
-        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
-        .unwrap();
+    let wkt = common::las_wkt(&f.dir.path().join("out/cloud.las"));
     assert!(wkt.contains("AUTHORITY[\"EPSG\",\"2154\"]"), "{wkt}");
     for (code, why) in [
         (4326, "geographic"),

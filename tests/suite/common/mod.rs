@@ -153,6 +153,18 @@ pub fn raise_max(acc: &mut f64, v: f64) {
     *acc = acc.max(v);
 }
 
+/// The OGC WKT CRS record (VLR 2112) of the LAS file `path`.
+pub fn las_wkt(path: &Path) -> String {
+    las::Reader::from_path(path)
+        .unwrap()
+        .header()
+        .vlrs()
+        .iter()
+        .find(|v| v.record_id == 2112)
+        .map(|v| String::from_utf8_lossy(&v.data).into_owned())
+        .unwrap()
+}
+
 /// Writes `path`: profiles `profiles` of 36 returns each at 10 m, every 10 deg of mirror angle.
 pub fn write_ring_profiles(path: &Path, profiles: std::ops::Range<u32>) {
     use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
