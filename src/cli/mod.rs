@@ -2,6 +2,7 @@
 //! `kinescan::Error`.
 
 mod calib_cmds;
+mod day_cmd;
 mod diagnose_cmd;
 mod pipeline_cmds;
 mod sensitivity_cmd;
@@ -32,6 +33,7 @@ enum Command {
     Demo(sim_cmds::DemoArgs),
     Sensitivity(sensitivity_cmd::SensitivityArgs),
     Diagnose(diagnose_cmd::DiagnoseArgs),
+    Day(day_cmd::DayArgs),
 }
 
 /// Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention).
@@ -104,6 +106,7 @@ pub fn run() -> ExitCode {
         Command::Demo(a) => sim_cmds::demo(a, cli.quiet),
         Command::Sensitivity(a) => sensitivity_cmd::sensitivity(a, cli.quiet),
         Command::Diagnose(a) => diagnose_cmd::diagnose(a, cli.quiet),
+        Command::Day(a) => day_cmd::day(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

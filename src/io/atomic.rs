@@ -123,6 +123,33 @@ pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Resul
     write_atomic(path, &json)
 }
 
+/// Appends `line` (no newline inside) and a newline to the append-only log `path` (created if
+/// missing), durably: under an exclusive lock on the file (processes appending at once do not
+/// interleave), a torn last line left by a killed writer is cut off first, and the file is
+/// fsynced before returning. The one append-only output (a work journal); every other output
+/// is written whole with [`AtomicFile`].
+pub fn append_line_durably(path: &Path, line: &str) -> Result<()> {
+    use std::io::Read;
+    let io = |e| Error::io(path, e);
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .read(true)
+        .write(true)
+        .open(path)
+        .map_err(io)?;
+    f.lock().map_err(io)?;
+    let mut text = Vec::new();
+    f.read_to_end(&mut text).map_err(io)?;
+    let whole = text.iter().rposition(|&b| b == b'\n').map_or(0, |k| k + 1);
+    if whole < text.len() {
+        f.set_len(whole as u64).map_err(io)?;
+    }
+    f.seek(SeekFrom::Start(whole as u64)).map_err(io)?;
+    f.write_all(format!("{line}\n").as_bytes()).map_err(io)?;
+    f.sync_all().map_err(io)
+}
+
 /// Creates a private staging folder in `parent` named `.<label>.kinescan-<pid>-<random>.tmp`
 /// (removed when the returned handle drops; recognised by [`remove_stale_temps`] if the
 /// process dies first).

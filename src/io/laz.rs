@@ -81,16 +81,23 @@ pub fn compress_las(las: &Path, laz: &Path) -> Result<LazSummary> {
     })
 }
 
-/// What the compression needs from a LAS 1.4 header.
-struct LasLayout {
-    offset_to_points: usize,
-    point_format: u8,
-    record_len: usize,
-    point_count: u64,
+/// Where the records of a LAS 1.4 file written by [`super::las::LasWriter`] are (what the
+/// compression and the day's merge of unit outputs read).
+pub struct LasLayout {
+    /// Byte offset of the first point record.
+    pub offset_to_points: usize,
+    /// Point data record format.
+    pub point_format: u8,
+    /// Bytes per point record.
+    pub record_len: usize,
+    /// Point records in the file.
+    pub point_count: u64,
 }
 
 impl LasLayout {
-    fn of(b: &[u8]) -> std::result::Result<Self, String> {
+    /// Reads the header of `b` (a whole file); the problem when it is not an uncompressed LAS
+    /// 1.4 file without EVLRs whose size matches its point count.
+    pub fn of(b: &[u8]) -> std::result::Result<Self, String> {
         if b.len() < LAS14_HEADER_SIZE || &b[..4] != b"LASF" || b[24] != 1 || b[25] != 4 {
             return Err("not a LAS 1.4 file".into());
         }

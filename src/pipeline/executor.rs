@@ -135,11 +135,7 @@ type Batch = Vec<(Range<usize>, Result<ChunkOut>)>;
 /// Chunks written but not yet hashed: bounds the mapped input pages still resident.
 const HASH_QUEUE_CHUNKS: usize = 16;
 
-/// Georeferences one profile file into `sink`. Batches of chunks are computed in parallel on
-/// the pool while a writer thread absorbs the previous batch (counts, checks, LAS), so writing
-/// overlaps computing; results are absorbed strictly in input order. A third thread hashes
-/// the written chunks' input bytes (the report's SHA-256) and releases their pages, so the
-/// hash is off the writer's path.
+/// Georeferences one profile file into `sink` ([`process_records`] over every record).
 pub fn process_input(
     geo: &ReturnGeoreferencer,
     fill: &PointFill,
@@ -149,8 +145,29 @@ pub fn process_input(
     sink: &mut LasSink,
     bar: &indicatif::ProgressBar,
 ) -> Result<InputReport> {
+    let all = 0..input.file.len();
+    process_records(geo, fill, input, all, opts, strictness, sink, bar)
+}
+
+/// Georeferences the records `records` of one profile file into `sink`. Batches of chunks are
+/// computed in parallel on the pool while a writer thread absorbs the previous batch (counts,
+/// checks, LAS), so writing overlaps computing; results are absorbed strictly in input order.
+/// A third thread hashes the written chunks' input bytes (the report's SHA-256: the file
+/// header and the records processed) and releases their pages, so the hash is off the
+/// writer's path.
+#[allow(clippy::too_many_arguments)]
+pub fn process_records(
+    geo: &ReturnGeoreferencer,
+    fill: &PointFill,
+    input: &PreparedInput,
+    records: Range<usize>,
+    opts: &super::RunOptions,
+    strictness: Strictness,
+    sink: &mut LasSink,
+    bar: &indicatif::ProgressBar,
+) -> Result<InputReport> {
     let file = &input.file;
-    let n = file.len();
+    let n = records.end.min(file.len());
     let chunk_len = opts.chunk_returns.max(1);
     let batch = chunk_len * rayon::current_num_threads() * 8;
     let layout = sink.layout().clone();
@@ -170,7 +187,7 @@ pub fn process_input(
             }
             Ok(())
         });
-        for batch_start in (0..n).step_by(batch) {
+        for batch_start in (records.start..n).step_by(batch) {
             let batch_end = (batch_start + batch).min(n);
             let ranges: Vec<_> = (batch_start..batch_end)
                 .step_by(chunk_len)

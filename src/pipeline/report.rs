@@ -7,12 +7,12 @@ pub use super::sync::SyncStageReport;
 use crate::io::atomic::write_json;
 pub use crate::io::digest::{hex, FileRecord};
 use crate::Result;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 /// Why a return was not written.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum RejectReason {
     /// Range 0 or empty: the scanner recorded no echo (conventions §6).
@@ -66,7 +66,7 @@ impl RejectReason {
 }
 
 /// Counts of returns by fate.
-#[derive(Debug, Clone, Default, PartialEq, Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct ReturnCounts {
     /// Returns read.
     pub read: u64,

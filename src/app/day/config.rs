@@ -1,0 +1,189 @@
+//! The day file (TOML, docs/nightly.md): the passes of a survey day, the pipeline template
+//! that says how every pass is processed, the output folder and layout, and what the night
+//! does. Loaded with the project's one config loader (`io::config_file`): unknown keys are
+//! refused with their dotted key, relative paths are relative to the day file's folder.
+
+use crate::io::config_file::{self, ConfigPath};
+use crate::pipeline::config::{self as pipeline_config, LoadedPipeline};
+use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A whole day file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DayConfig {
+    /// What the night does and where it writes.
+    pub day: DaySettings,
+    /// The day's passes, in acquisition order.
+    pub passes: Vec<PassConfig>,
+}
+
+/// `[day]`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DaySettings {
+    /// Pipeline file used for every pass: trajectory (`inputs.sbet`, `inputs.smrmsg`),
+    /// sensor, time model, latency, uncertainty, `[sync]` (sync targets), `[diagnose]`
+    /// (reference patches), output frame and scale. Its `inputs.profiles` and `output.las`
+    /// are replaced per pass.
+    pub template: ConfigPath,
+    /// Output folder: the day's LAS files, report, plan, journal and unit outputs.
+    pub out: ConfigPath,
+    /// Output layout.
+    #[serde(default)]
+    pub layout: Layout,
+    /// Length of a work unit (s of scanning): a pass is cut into units of this many seconds
+    /// of profiles.
+    #[serde(default = "default_unit_s")]
+    pub unit_s: f64,
+    /// What the night does besides georeferencing.
+    #[serde(default)]
+    pub night: NightOptions,
+}
+
+fn default_unit_s() -> f64 {
+    60.0
+}
+
+/// `[day.layout]`: how the day's points are grouped into LAS files.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Layout {
+    /// One LAS file per pass, `<pass name>.las`.
+    #[default]
+    PerPass,
+    /// Square tiles of `size_m` in the output frame, `tile_<E>_<N>.las` (lower-left corner, m).
+    Tiles {
+        /// Tile edge (m).
+        size_m: f64,
+    },
+}
+
+/// `[day.night]`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct NightOptions {
+    /// Synchronise each pass with the template's `[sync]` (ignored without it).
+    #[serde(default = "yes")]
+    pub sync: bool,
+    /// Run the diagnosis on each pass (needs the template's `[diagnose]`).
+    #[serde(default)]
+    pub diagnose: bool,
+    /// Re-run a pass with a significant diagnosed correction (otherwise it is reported).
+    #[serde(default)]
+    pub auto_correct: bool,
+}
+
+impl Default for NightOptions {
+    fn default() -> Self {
+        NightOptions {
+            sync: true,
+            diagnose: false,
+            auto_correct: false,
+        }
+    }
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// `[[passes]]`: one drive past the area; each profile file is one scanner's recording.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PassConfig {
+    /// Pass name (letters, digits, `-`, `_`): names its output and work units.
+    pub name: String,
+    /// Profile files of the pass (binary or CSV), one per scanner.
+    pub profiles: Vec<ConfigPath>,
+}
+
+/// A loaded day file.
+#[derive(Debug, Clone)]
+pub struct LoadedDay {
+    /// The day file.
+    pub path: PathBuf,
+    /// How errors name it.
+    pub source: String,
+    /// Its content, paths absolute.
+    pub config: DayConfig,
+    /// The template, loaded once (its profile list and output replaced per input).
+    pub template: LoadedPipeline,
+}
+
+/// Reads and checks the day file and its template; errors name the file and the dotted key.
+pub fn load(path: &Path) -> Result<LoadedDay> {
+    let parsed = config_file::load::<DayConfig>(path, &[])?;
+    let c = parsed.value;
+    check(&c).map_err(|(key, problem)| Error::config(&parsed.source, key, problem))?;
+    let missing = c.passes.iter().enumerate().flat_map(|(i, p)| {
+        let keys = (0..p.profiles.len()).map(move |j| format!("passes[{i}].profiles[{j}]"));
+        keys.zip(&p.profiles)
+    });
+    for (key, file) in missing {
+        if !file.is_file() {
+            let problem = format!("profile file {} does not exist", file.display());
+            return Err(Error::config(&parsed.source, key, problem));
+        }
+    }
+    // The template is checked with the first pass's files (its own list may be empty).
+    let files: Vec<toml::Value> = c.passes[0]
+        .profiles
+        .iter()
+        .map(|p| toml::Value::String(p.to_string_lossy().into()))
+        .collect();
+    let profiles = format!("inputs.profiles={}", toml::Value::Array(files));
+    let template = pipeline_config::load(&c.day.template, &[profiles])?;
+    Ok(LoadedDay {
+        path: path.to_path_buf(),
+        source: parsed.source,
+        config: c,
+        template,
+    })
+}
+
+fn check(c: &DayConfig) -> std::result::Result<(), (String, String)> {
+    let d = &c.day;
+    if !(d.unit_s.is_finite() && d.unit_s > 0.0) {
+        return Err((
+            "day.unit_s".into(),
+            format!("must be > 0 s, got {}", d.unit_s),
+        ));
+    }
+    if let Layout::Tiles { size_m } = d.layout {
+        if !(size_m.is_finite() && size_m >= 1.0) {
+            let problem = format!("must be at least 1 m, got {size_m}");
+            return Err(("day.layout.size_m".into(), problem));
+        }
+    }
+    for (key, on) in [
+        ("day.night.diagnose", d.night.diagnose),
+        ("day.night.auto_correct", d.night.auto_correct),
+    ] {
+        if on {
+            let problem = "not wired into `kinescan day` yet: set it to false and run \
+                           `kinescan diagnose` on a pass's pipeline";
+            return Err((key.into(), problem.into()));
+        }
+    }
+    if c.passes.is_empty() {
+        return Err(("passes".into(), "at least one pass is required".into()));
+    }
+    for (i, p) in c.passes.iter().enumerate() {
+        let ok = |ch: char| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_';
+        if p.name.is_empty() || !p.name.chars().all(ok) {
+            let problem = format!("`{}`: letters, digits, - and _ only", p.name);
+            return Err((format!("passes[{i}].name"), problem));
+        }
+        if let Some(j) = c.passes[..i].iter().position(|q| q.name == p.name) {
+            let problem = format!("`{}` is also the name of passes[{j}]", p.name);
+            return Err((format!("passes[{i}].name"), problem));
+        }
+        if p.profiles.is_empty() {
+            let problem = "at least one profile file is required".to_string();
+            return Err((format!("passes[{i}].profiles"), problem));
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,284 @@
+//! `kinescan day DAY.toml`: a survey day processed overnight in resumable work units
+//! (docs/nightly.md).
+//!
+//! 1. **load** ([`config`]): the day file and its pipeline template, every key checked and
+//!    every profile file present.
+//! 2. **plan** ([`plan`]): every pass prepared and checked (within the trajectory, no two
+//!    passes overlapping in time) before any work; clocks resolved (synchronised with
+//!    `[sync]`); passes cut into work units; `<out>/plan.json`. A restart reads the plan back.
+//! 3. **units** ([`units`]): each unit not yet in the journal ([`journal`]) georeferenced into
+//!    `<out>/units/<id>.las` (atomically), then journalled with its hash and counts.
+//! 4. **merge** ([`merge`]): the day's LAS files (per pass or tiles) from the unit outputs in
+//!    plan order, and the day report, published as one set (`io::publish`).
+
+pub mod config;
+pub mod journal;
+pub mod merge;
+pub mod plan;
+pub mod units;
+
+use crate::io::atomic::{remove_stale_temps, write_json};
+use crate::io::publish::{remove_unproduced, OutputSet, StemLock};
+use crate::pipeline::executor::RunOptions;
+use crate::pipeline::prepare::Prepared;
+use crate::pipeline::report::ReturnCounts;
+use crate::{Error, Result};
+use config::LoadedDay;
+use journal::Entry;
+use plan::Plan;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What a `day` invocation does.
+#[derive(Debug, Clone, Default)]
+pub enum Step {
+    /// Plan, run every unit not done, merge and publish.
+    #[default]
+    All,
+    /// Plan only (write the plan file).
+    Plan,
+    /// Run one unit of the existing plan (a cluster task).
+    Unit(String),
+    /// Merge and publish; every unit must be done.
+    Merge,
+}
+
+/// The day report (`<out>/day.report.json`).
+#[derive(Debug, Clone, Serialize)]
+pub struct DayReport {
+    /// kinescan version.
+    pub kinescan_version: String,
+    /// The day file.
+    pub day_file: PathBuf,
+    /// Work units planned.
+    pub units: usize,
+    /// Units found done in the journal (not run again by this invocation).
+    pub units_resumed: usize,
+    /// Per pass, in day-file order.
+    pub passes: Vec<PassReport>,
+    /// The day's counts: `read = written + rejected`.
+    pub totals: ReturnCounts,
+    /// LAS files written.
+    pub outputs: Vec<OutputFile>,
+    /// Seconds per step: plan, units, merge.
+    pub timings_s: BTreeMap<String, f64>,
+}
+
+/// One pass in the day report.
+#[derive(Debug, Clone, Serialize)]
+pub struct PassReport {
+    /// Pass name.
+    pub name: String,
+    /// Its work units.
+    pub units: usize,
+    /// Its counts (sum of its units').
+    pub counts: ReturnCounts,
+    /// Seconds spent in its units (summed over the runs that did them).
+    pub unit_seconds: f64,
+}
+
+/// One LAS file of the day.
+#[derive(Debug, Clone, Serialize)]
+pub struct OutputFile {
+    /// Path.
+    pub path: PathBuf,
+    /// Points.
+    pub points: u64,
+}
+
+/// Runs `step` of the day file `path`; gives the report when the day was published.
+pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayReport>> {
+    let day = config::load(path)?;
+    let out = day.config.day.out.to_path_buf();
+    std::fs::create_dir_all(out.join("units")).map_err(|e| Error::io(&out, e))?;
+    let _lock = match step {
+        Step::Unit(_) => None,
+        _ => Some(StemLock::acquire(&out.join("day.las"))?),
+    };
+    for dir in [out.clone(), out.join("units")] {
+        remove_stale_temps(&dir)?;
+    }
+    let mut timings = BTreeMap::new();
+    let started = Instant::now();
+    let (plan, mut prepared) = plan_day(&day, !matches!(step, Step::Unit(_)), opts)?;
+    let opts = &RunOptions {
+        chunk_returns: plan.chunk_returns,
+        ..opts.clone()
+    };
+    timings.insert("plan".to_string(), started.elapsed().as_secs_f64());
+    let mut done = finished_units(&day, &plan)?;
+    let resumed = done.len();
+    let started = Instant::now();
+    let pending: Vec<&plan::Unit> = match step {
+        Step::Plan => return Ok(None),
+        Step::Merge => Vec::new(),
+        Step::All => plan.units.iter().collect(),
+        Step::Unit(id) => vec![plan.units.iter().find(|u| &u.id == id).ok_or_else(|| {
+            Error::Invalid(format!(
+                "{}: no work unit `{id}` in the plan",
+                path.display()
+            ))
+        })?],
+    };
+    for unit in pending {
+        if done.contains_key(&unit.id) {
+            continue;
+        }
+        crate::interrupt::check()?;
+        if prepared.is_empty() {
+            prepared = plan::prepare_passes(&day)?;
+        }
+        let entry = units::run_unit(&day, &plan, unit, &prepared[unit.pass], opts)?;
+        done.insert(unit.id.clone(), entry);
+    }
+    timings.insert("units".to_string(), started.elapsed().as_secs_f64());
+    if matches!(step, Step::Unit(_)) {
+        return Ok(None);
+    }
+    let started = Instant::now();
+    let report = publish(&day, &plan, &done, resumed, timings, started)?;
+    Ok(Some(report))
+}
+
+/// The plan read back, or made (passes prepared and checked first) when `may_plan`; the
+/// prepared passes when they were needed.
+fn plan_day(day: &LoadedDay, may_plan: bool, opts: &RunOptions) -> Result<(Plan, Vec<Prepared>)> {
+    let plan_path = day.config.day.out.join("plan.json");
+    let fingerprint = plan::fingerprint(day)?;
+    if let Some(p) = plan::read_existing(&plan_path, &fingerprint)? {
+        return Ok((p, Vec::new()));
+    }
+    if !may_plan {
+        let problem = "no plan: run `kinescan day DAY.toml --plan` first";
+        return Err(Error::bad_file(plan_path, problem));
+    }
+    let prepared = plan::prepare_passes(day)?;
+    plan::check_passes(day, &prepared)?;
+    let (p, _sync_reports) = plan::make(day, &prepared, fingerprint, opts.chunk_returns.max(1))?;
+    write_json(&plan_path, &p)?;
+    Ok((p, prepared))
+}
+
+/// The journal's units whose output file is there with the journalled hash.
+fn finished_units(day: &LoadedDay, plan: &Plan) -> Result<BTreeMap<String, Entry>> {
+    let out = &day.config.day.out;
+    let mut entries = journal::read(&out.join("journal.jsonl"))?;
+    entries.retain(|id, e| {
+        plan.units.iter().any(|u| &u.id == id)
+            && journal::file_sha256(&units::unit_path(out, id)).as_ref() == Some(&e.sha256)
+    });
+    Ok(entries)
+}
+
+/// Merges, checks the counts add up, writes the report and publishes the set.
+fn publish(
+    day: &LoadedDay,
+    plan: &Plan,
+    done: &BTreeMap<String, Entry>,
+    resumed: usize,
+    mut timings: BTreeMap<String, f64>,
+    started: Instant,
+) -> Result<DayReport> {
+    let missing: Vec<&str> = plan
+        .units
+        .iter()
+        .filter(|u| !done.contains_key(&u.id))
+        .map(|u| u.id.as_str())
+        .collect();
+    if !missing.is_empty() {
+        let problem = format!("work units not done yet: {}", missing.join(", "));
+        return Err(Error::bad_file(
+            day.config.day.out.join("journal.jsonl"),
+            problem,
+        ));
+    }
+    let out = day.config.day.out.to_path_buf();
+    let report_path = out.join("day.report.json");
+    let previous = previous_outputs(&report_path);
+    let mut set = OutputSet::new("day");
+    let result = merge::merge(day, plan, &mut set).and_then(|summaries| {
+        let report = day_report(day, plan, done, resumed, &summaries, &set)?;
+        let mut report = report;
+        timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
+        report.timings_s = timings;
+        write_json(&set.stage(&report_path)?, &report)?;
+        crate::interrupt::check()?;
+        Ok(report)
+    });
+    let report = result.map_err(|e| set.user_error(e))?;
+    let produced = set.publish(std::slice::from_ref(&report_path))?;
+    remove_unproduced(&previous, &produced)?;
+    Ok(report)
+}
+
+fn day_report(
+    day: &LoadedDay,
+    plan: &Plan,
+    done: &BTreeMap<String, Entry>,
+    resumed: usize,
+    summaries: &[crate::io::las::LasSummary],
+    set: &OutputSet,
+) -> Result<DayReport> {
+    let mut passes: Vec<PassReport> = day
+        .config
+        .passes
+        .iter()
+        .map(|p| PassReport {
+            name: p.name.clone(),
+            units: 0,
+            counts: ReturnCounts::default(),
+            unit_seconds: 0.0,
+        })
+        .collect();
+    let mut totals = ReturnCounts::default();
+    for u in &plan.units {
+        let e = &done[&u.id];
+        let p = &mut passes[u.pass];
+        p.units += 1;
+        p.counts.merge(&e.counts);
+        p.unit_seconds += e.seconds;
+        totals.merge(&e.counts);
+    }
+    let outputs: Vec<OutputFile> = summaries
+        .iter()
+        .map(|s| OutputFile {
+            path: set.final_path(&s.path),
+            points: s.point_count,
+        })
+        .collect();
+    let merged: u64 = outputs.iter().map(|o| o.points).sum();
+    if merged != totals.written || totals.read != totals.written + totals.rejected_total() {
+        return Err(Error::Invalid(format!(
+            "{}: counts do not add up: {} returns read, {} written by the units, {} rejected, \
+             {merged} in the merged files",
+            day.path.display(),
+            totals.read,
+            totals.written,
+            totals.rejected_total()
+        )));
+    }
+    Ok(DayReport {
+        kinescan_version: env!("CARGO_PKG_VERSION").into(),
+        day_file: day.path.clone(),
+        units: plan.units.len(),
+        units_resumed: resumed,
+        passes,
+        totals,
+        outputs,
+        timings_s: BTreeMap::new(),
+    })
+}
+
+/// The LAS files the previous day report at `report` lists (none without one).
+fn previous_outputs(report: &Path) -> Vec<PathBuf> {
+    let Ok(text) = std::fs::read(report) else {
+        return Vec::new();
+    };
+    let json: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
+    let outputs = json["outputs"].as_array().into_iter().flatten();
+    outputs
+        .filter_map(|o| o["path"].as_str().map(PathBuf::from))
+        .collect()
+}

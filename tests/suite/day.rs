@@ -1,0 +1,373 @@
+//! `kinescan day`: a scaled-down simulated survey day (the simulator's base drive cut into
+//! three passes) planned into work units, merged per pass or into tiles; killed at random
+//! points (SIGKILL and SIGTERM) and resumed with identical bytes; bad day files refused
+//! before any work.
+
+use crate::common::{write_ring_profiles, Lcg};
+use crate::sim_support;
+use kinescan::io::profiles::{ProfileFile, ProfileWriter};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+const PASSES: [&str; 3] = ["p01", "p02", "p03"];
+
+/// Simulates the base drive (100 returns per profile) into `dir`, cuts its profiles into
+/// three pass files by profile counter and writes `template.toml` with the configured sensor.
+fn simulated_day(dir: &Path) {
+    let text = sim_support::BASE.replace("points_per_profile = 300", "points_per_profile = 100");
+    let sc = kinescan::sim::Scenario::parse(&text, "day").unwrap();
+    sim_support::run(&sc, dir, 2);
+    let all = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
+    let last = all.get(all.len() - 1).profile;
+    let mut writers: Vec<ProfileWriter> = PASSES
+        .iter()
+        .map(|p| ProfileWriter::create(&dir.join(format!("{p}.ksprof")), all.columns()).unwrap())
+        .collect();
+    for i in 0..all.len() {
+        let r = all.get(i);
+        let k = (r.profile as usize * PASSES.len() / (last as usize + 1)).min(PASSES.len() - 1);
+        writers[k].push(&r).unwrap();
+    }
+    for w in writers {
+        w.finish().unwrap();
+    }
+    let (sensor, clock) = sim_support::configured(dir);
+    let deg = sensor.boresight_rad.map(f64::to_degrees);
+    let template = format!(
+        r#"[inputs]
+sbet = "trajectory.sbet"
+smrmsg = "trajectory.smrmsg"
+profiles = []
+[sensor]
+lever_arm_b_m = [{}, {}, {}]
+boresight_deg = [{}, {}, {}]
+alpha0_deg = {}
+range_zero_m = {}
+[time]
+t0_s = {}
+period_s = {}
+beta_start_deg = {}
+direction = "{}"
+[output]
+las = "unused.las"
+[uncertainty]
+sigma_lever_arm_b_m = [0.002, 0.002, 0.002]
+sigma_boresight_deg = [0.001, 0.001, 0.002]
+sigma_alpha_deg = 0.001
+sigma_beta_deg = 0.001
+sigma_range_m = 0.005
+sigma_range_zero_m = 0.002
+clock_covariance_s2 = [[1e-10, 0.0], [0.0, 1e-16]]
+sigma_attitude_latency_s = 0.0001
+write_95 = true
+"#,
+        sensor.lever_arm_b_m.x,
+        sensor.lever_arm_b_m.y,
+        sensor.lever_arm_b_m.z,
+        deg.x,
+        deg.y,
+        deg.z,
+        sensor.alpha0_rad.to_degrees(),
+        sensor.range_zero_m,
+        clock.t0_s,
+        clock.period_s,
+        clock.mirror.beta_start_rad.to_degrees(),
+        if clock.mirror.direction.sign() > 0.0 {
+            "increasing"
+        } else {
+            "decreasing"
+        },
+    );
+    std::fs::write(dir.join("template.toml"), template).unwrap();
+}
+
+/// Writes `<name>.toml`: the day of `passes` (name, profile files) into `out`.
+fn day_file(
+    dir: &Path,
+    name: &str,
+    out: &str,
+    layout: &str,
+    passes: &[(&str, &[&str])],
+) -> PathBuf {
+    let mut text = format!(
+        "[day]\ntemplate = \"template.toml\"\nout = \"{out}\"\nunit_s = 2.0\nlayout = {layout}\n"
+    );
+    for (pass, files) in passes {
+        let files: Vec<String> = files.iter().map(|f| format!("\"{f}\"")).collect();
+        text += &format!(
+            "\n[[passes]]\nname = \"{pass}\"\nprofiles = [{}]\n",
+            files.join(", ")
+        );
+    }
+    let path = dir.join(format!("{name}.toml"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+/// A pass of a day file: name, profile files.
+type Pass = (&'static str, &'static [&'static str]);
+
+fn three_passes() -> Vec<Pass> {
+    vec![
+        ("p01", &["p01.ksprof"]),
+        ("p02", &["p02.ksprof"]),
+        ("p03", &["p03.ksprof"]),
+    ]
+}
+
+fn kinescan(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_kinescan"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn ok(out: std::process::Output) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "kinescan failed: {err}");
+}
+
+/// Every `.las` file of `dir` (not the units), by name, with its bytes.
+fn las_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "las"))
+        .map(|p| {
+            (
+                p.file_name().unwrap().to_string_lossy().into(),
+                std::fs::read(&p).unwrap(),
+            )
+        })
+        .collect();
+    files.sort();
+    files
+}
+
+/// The day report's counts: per pass and totals (timings left out).
+fn report_counts(out: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(out.join("day.report.json")).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let passes: Vec<_> = r["passes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| serde_json::json!([p["name"], p["counts"], p["units"]]))
+        .collect();
+    let outputs: Vec<_> = r["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| {
+            let name = Path::new(o["path"].as_str().unwrap()).file_name().unwrap();
+            serde_json::json!([name.to_string_lossy(), o["points"]])
+        })
+        .collect();
+    serde_json::json!({ "passes": passes, "totals": r["totals"], "outputs": outputs })
+}
+
+/// `read = written + rejected` per pass and for the day; the files hold `written` points.
+fn assert_counts_add_up(out: &Path) {
+    let text = std::fs::read_to_string(out.join("day.report.json")).unwrap();
+    let r: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let add_up = |c: &serde_json::Value| {
+        let rejected: u64 = c["rejected"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|v| v.as_u64().unwrap())
+            .sum();
+        assert_eq!(
+            c["read"].as_u64().unwrap(),
+            c["written"].as_u64().unwrap() + rejected
+        );
+        c["written"].as_u64().unwrap()
+    };
+    let per_pass: u64 = r["passes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| add_up(&p["counts"]))
+        .sum();
+    let points: u64 = r["outputs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["points"].as_u64().unwrap())
+        .sum();
+    assert_eq!(per_pass, add_up(&r["totals"]));
+    assert_eq!(points, per_pass);
+    assert!(points > 0);
+}
+
+#[test]
+fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let day = day_file(
+        d,
+        "day",
+        "night",
+        "{ kind = \"per_pass\" }",
+        &three_passes(),
+    );
+    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    assert_counts_add_up(&d.join("night"));
+    let plan: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("night/plan.json")).unwrap()).unwrap();
+    let units = plan["units"].as_array().unwrap().len();
+    // 20,000 returns per pass, cut near 2 s (10,000 returns) on the 16,384-return chunk grid.
+    assert_eq!(units, 6, "two units per pass expected");
+    for (k, pass) in PASSES.iter().enumerate() {
+        let las = format!("run/{pass}.las");
+        let source = format!("inputs.first_point_source_id={}", k + 1);
+        let profiles = format!("inputs.profiles=[\"{pass}.ksprof\"]");
+        let template = d.join("template.toml");
+        ok(kinescan(&[
+            "run",
+            template.to_str().unwrap(),
+            "-q",
+            "--set",
+            &profiles,
+            "--set",
+            &source,
+            "--set",
+            &format!("output.las={las}"),
+        ]));
+        let from_day = std::fs::read(d.join(format!("night/{pass}.las"))).unwrap();
+        let from_run = std::fs::read(d.join(&las)).unwrap();
+        assert!(
+            from_day == from_run,
+            "{pass}: day output differs from kinescan run's"
+        );
+    }
+}
+
+#[test]
+fn tiles_do_not_depend_on_the_order_units_finished() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let tiles = "{ kind = \"tiles\", size_m = 25.0 }";
+    let straight = day_file(d, "straight", "a", tiles, &three_passes());
+    ok(kinescan(&["day", straight.to_str().unwrap(), "-q"]));
+    let reversed = day_file(d, "reversed", "b", tiles, &three_passes());
+    let day = reversed.to_str().unwrap();
+    ok(kinescan(&["day", day, "--plan"]));
+    let plan: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("b/plan.json")).unwrap()).unwrap();
+    for u in plan["units"].as_array().unwrap().iter().rev() {
+        ok(kinescan(&[
+            "day",
+            day,
+            "--unit",
+            u["id"].as_str().unwrap(),
+            "-q",
+        ]));
+    }
+    ok(kinescan(&["day", day, "--merge", "-q"]));
+    let (a, b) = (las_files(&d.join("a")), las_files(&d.join("b")));
+    assert!(
+        a.len() > 1,
+        "the drive spans several 25 m tiles: got {}",
+        a.len()
+    );
+    assert!(
+        a == b,
+        "tiles differ when the units finished in reverse order"
+    );
+    assert_counts_add_up(&d.join("b"));
+}
+
+#[test]
+fn a_killed_day_resumes_to_identical_bytes_and_counts() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let layout = "{ kind = \"per_pass\" }";
+    let whole = day_file(d, "whole", "whole", layout, &three_passes());
+    let started = Instant::now();
+    ok(kinescan(&["day", whole.to_str().unwrap(), "-q"]));
+    let run_s = started.elapsed().as_secs_f64();
+    let killed = day_file(d, "killed", "killed", layout, &three_passes());
+    let mut rng = Lcg(14);
+    let mut interrupted = 0;
+    for k in 0..5 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_kinescan"))
+            .args(["day", killed.to_str().unwrap(), "-q"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_secs_f64(rng.range(0.0, run_s)));
+        if k % 2 == 0 {
+            child.kill().unwrap(); // SIGKILL
+        } else {
+            let pid = child.id().to_string();
+            Command::new("kill").args(["-TERM", &pid]).status().unwrap();
+        }
+        let status = child.wait().unwrap();
+        interrupted += usize::from(!status.success());
+    }
+    // A kill after the run ended interrupts nothing; the seeded delays must stop most runs.
+    assert!(
+        interrupted >= 3,
+        "only {interrupted} of 5 runs were interrupted"
+    );
+    ok(kinescan(&["day", killed.to_str().unwrap(), "-q"]));
+    let (a, b) = (las_files(&d.join("whole")), las_files(&d.join("killed")));
+    assert_eq!(a.len(), PASSES.len());
+    assert!(
+        a == b,
+        "resumed output differs from the uninterrupted run's"
+    );
+    assert_eq!(
+        report_counts(&d.join("whole")),
+        report_counts(&d.join("killed"))
+    );
+    assert_counts_add_up(&d.join("killed"));
+}
+
+#[test]
+fn bad_day_files_are_refused_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    // Profiles 10^7 periods after t0: days after the trajectory ends.
+    write_ring_profiles(&d.join("late.ksprof"), 10_000_000..10_000_010);
+    let cases: [(&str, Vec<Pass>, &str); 3] = [
+        (
+            "missing",
+            vec![("p01", &["p01.ksprof"]), ("p02", &["nowhere.ksprof"])],
+            "passes[1].profiles[0]",
+        ),
+        (
+            "overlap",
+            vec![("p01", &["p01.ksprof"]), ("again", &["p01.ksprof"])],
+            "passes[1]",
+        ),
+        (
+            "outside",
+            vec![("p01", &["p01.ksprof"]), ("late", &["late.ksprof"])],
+            "passes[1]",
+        ),
+    ];
+    for (name, passes, key) in cases {
+        let day = day_file(d, name, name, "{ kind = \"per_pass\" }", &passes);
+        let out = kinescan(&["day", day.to_str().unwrap(), "-q"]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{name}: accepted");
+        assert!(
+            err.contains(&format!("{name}.toml")) && err.contains(key),
+            "{name}: {err}"
+        );
+        let planned = d.join(name).join("plan.json").exists();
+        let units = std::fs::read_dir(d.join(name).join("units")).map_or(0, |r| r.count());
+        assert!(
+            !planned && units == 0,
+            "{name}: work started before the refusal"
+        );
+    }
+}
