@@ -122,6 +122,21 @@ impl OutputSet {
     }
 }
 
+/// Ends a run writing into `set`: when `result` is a success, publishes the set (`report`
+/// last) and removes the `previous` run's files this run did not produce; otherwise drops the
+/// set (the previous outputs stay) and gives the error naming the user's paths.
+pub fn conclude<T>(
+    set: OutputSet,
+    result: Result<T>,
+    report: &Path,
+    previous: &[PathBuf],
+) -> Result<T> {
+    let value = result.map_err(|e| set.user_error(e))?;
+    let produced = set.publish(&[report.to_path_buf()])?;
+    remove_unproduced(previous, &produced)?;
+    Ok(value)
+}
+
 /// An exclusive lock on an output stem, held while a run writes and publishes it: the file
 /// `.<stem>.kinescan-lock` beside the output (empty, kept; the lock is the OS's, released when
 /// the process ends however it ends).

@@ -7,7 +7,7 @@
 use super::config::LoadedPipeline;
 use super::report::RunReport;
 use crate::io::atomic::remove_stale_temps;
-use crate::io::publish::{previous_outputs, remove_unproduced, OutputSet, StemLock};
+use crate::io::publish::{conclude, previous_outputs, OutputSet, StemLock};
 use crate::Result;
 use std::path::Path;
 
@@ -45,10 +45,7 @@ pub fn publish_run(
         crate::interrupt::check()?;
         Ok(report)
     });
-    let report = result.map_err(|e| set.user_error(e))?;
-    let produced = set.publish(std::slice::from_ref(&report_path))?;
-    remove_unproduced(&previous, &produced)?;
-    Ok(report)
+    conclude(set, result, &report_path, &previous)
 }
 
 fn parent(path: &Path) -> &Path {

@@ -18,7 +18,7 @@ pub mod plan;
 pub mod units;
 
 use crate::io::atomic::{remove_stale_temps, write_json};
-use crate::io::publish::{remove_unproduced, OutputSet, StemLock};
+use crate::io::publish::{conclude, OutputSet, StemLock};
 use crate::pipeline::executor::RunOptions;
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
@@ -199,18 +199,14 @@ fn publish(
     let previous = previous_outputs(&report_path);
     let mut set = OutputSet::new("day");
     let result = merge::merge(day, plan, &mut set).and_then(|summaries| {
-        let report = day_report(day, plan, done, resumed, &summaries, &set)?;
-        let mut report = report;
+        let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
         timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
         report.timings_s = timings;
         write_json(&set.stage(&report_path)?, &report)?;
         crate::interrupt::check()?;
         Ok(report)
     });
-    let report = result.map_err(|e| set.user_error(e))?;
-    let produced = set.publish(std::slice::from_ref(&report_path))?;
-    remove_unproduced(&previous, &produced)?;
-    Ok(report)
+    conclude(set, result, &report_path, &previous)
 }
 
 fn day_report(
