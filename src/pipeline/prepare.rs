@@ -127,7 +127,7 @@ pub fn map_frame(f: &FrameConfig, traj: &Trajectory) -> Result<MapFrame> {
 /// Opens the grid of `output.geoid` and checks that it has nodes under every point the
 /// scanner can reach from every trajectory record (the range limit plus the range offset and
 /// the lever arm), so no point falls outside it; errors name the key and the file.
-fn open_geoid(p: &LoadedPipeline, traj: &Trajectory) -> Result<Option<GeoidGrid>> {
+pub fn open_geoid(p: &LoadedPipeline, traj: &Trajectory) -> Result<Option<GeoidGrid>> {
     let Some(path) = &p.config.output.geoid else {
         return Ok(None);
     };

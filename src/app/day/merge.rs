@@ -8,22 +8,23 @@ use super::units::unit_path;
 use crate::io::las::{stats_of_records, LasSummary};
 use crate::io::laz::LasLayout;
 use crate::io::publish::OutputSet;
-use crate::pipeline::prepare::{map_frame, open_trajectory};
+use crate::pipeline::prepare::{map_frame, open_geoid, open_trajectory};
 use crate::pipeline::schema::OutputSchema;
-use crate::pipeline::write::{LasSink, SinkSettings};
+use crate::pipeline::write::{into_format, LasSink, SinkSettings};
 use crate::{Error, Result};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-/// Writes the day's LAS files into `set`'s staging folders; gives their summaries (staged
-/// paths), in file-name order.
+/// Writes the day's LAS files into `set`'s staging folders (compressed when the template's
+/// `output.format` says so); gives their summaries (staged paths), in file-name order.
 pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<LasSummary>> {
     let out = &day.config.day.out;
     let mut sinks: BTreeMap<PathBuf, LasSink> = BTreeMap::new();
     let first = pass_pipeline(day, 0, &out.join("x.las"));
     let traj = open_trajectory(&first.config)?;
     let frame = map_frame(&first.config.output.frame, &traj)?;
+    let geoid = open_geoid(&first, &traj)?;
     for unit in &plan.units {
         let path = unit_path(out, &unit.id);
         let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
@@ -40,7 +41,7 @@ pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<La
             if !sinks.contains_key(&staged) {
                 let c = pass_pipeline(day, unit.pass, &staged).config;
                 let schema = OutputSchema::new(&c);
-                let settings = SinkSettings::new(&c, &schema, &frame, &traj)?;
+                let settings = SinkSettings::new(&c, &schema, &frame, geoid.as_ref(), &traj)?;
                 sinks.insert(staged.clone(), LasSink::new(settings));
             }
             let sink = sinks.get_mut(&staged).expect("inserted above");
@@ -51,7 +52,7 @@ pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<La
     for (_, sink) in sinks {
         summaries.extend(sink.finish()?);
     }
-    Ok(summaries)
+    into_format(day.template.config.output.format, summaries)
 }
 
 /// The records of a unit grouped by tile (`tile_<E>_<N>.las`, lower-left corner in m, tiles

@@ -19,9 +19,9 @@ pub mod units;
 
 use crate::io::atomic::{remove_stale_temps, write_json};
 use crate::io::publish::{conclude, OutputSet, StemLock};
-use crate::pipeline::executor::RunOptions;
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
+use crate::pipeline::RunOptions;
 use crate::{Error, Result};
 use config::LoadedDay;
 use journal::Entry;

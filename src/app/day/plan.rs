@@ -5,7 +5,7 @@
 
 use super::config::LoadedDay;
 use crate::io::profiles::ProfileFile;
-use crate::pipeline::config::{LoadedPipeline, SplitMode};
+use crate::pipeline::config::{LoadedPipeline, OutputFormat, SplitMode};
 use crate::pipeline::prepare::{self, Prepared};
 use crate::pipeline::sync::{self, ResolvedClock, SyncStageReport};
 use crate::{Error, Result};
@@ -107,6 +107,7 @@ pub fn pass_pipeline(day: &LoadedDay, pass: usize, las: &Path) -> LoadedPipeline
     c.output.las = las.to_path_buf().into();
     c.output.report = None;
     c.output.split = SplitMode::None;
+    c.output.format = OutputFormat::Las;
     c.output.allow_empty = true;
     if !day.config.day.night.sync {
         c.sync = None;

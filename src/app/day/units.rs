@@ -4,12 +4,13 @@
 use super::config::LoadedDay;
 use super::journal::{self, Entry};
 use super::plan::{pass_pipeline, Plan, Unit};
-use crate::pipeline::executor::{process_records, RunOptions};
+use crate::pipeline::executor::process_records;
 use crate::pipeline::georeference::ReturnGeoreferencer;
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::schema::OutputSchema;
 use crate::pipeline::sync::ResolvedClock;
 use crate::pipeline::write::{LasSink, SinkSettings};
+use crate::pipeline::RunOptions;
 use crate::Result;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -43,13 +44,15 @@ pub fn run_unit(
         clock,
         prepared.frame,
         c.uncertainty.as_ref(),
-    );
+    )
+    .with_geoid(prepared.geoid.as_ref());
     let schema = OutputSchema::new(c);
     let fill = schema.fill(input.point_source_id);
     let mut sink = LasSink::new(SinkSettings::new(
         c,
         &schema,
         &prepared.frame,
+        prepared.geoid.as_ref(),
         &prepared.traj,
     )?);
     sink.start_input(&input.original)?;
