@@ -123,21 +123,28 @@ fn bad_input_names_what_is_missing() {
     );
 }
 
+/// A 25 s city block in `d` with a 5 cm range zero error, its pipeline and a diagnosis request
+/// against its patches into `d/diag`.
+fn range_zero_survey(d: &Path) -> (config::LoadedPipeline, kinescan::app::diagnose::Request) {
+    city_block(d, "range_zero_error_m = 0.05", 11);
+    let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
+    let req = kinescan::app::diagnose::Request {
+        patches: d.join("survey/patches.csv"),
+        out_dir: d.join("diag"),
+    };
+    (p, req)
+}
+
 /// The diagnosis end to end on a 25 s city block with a 5 cm range zero error (the statistics
 /// have their own tests; `diagnose_acceptance` measures the rates): the effect is named with an
 /// estimate within 3 sigma, the corrected pipeline is written and loads, and the held-out gap
 /// shrinks after re-processing.
 #[test]
 fn diagnose_names_a_range_zero_error_and_the_rerun_closes_the_gap() {
-    use kinescan::app::diagnose::{report::Verdict, run, Request};
+    use kinescan::app::diagnose::{report::Verdict, run};
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    city_block(d, "range_zero_error_m = 0.05", 11);
-    let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
-    let req = Request {
-        patches: d.join("survey/patches.csv"),
-        out_dir: d.join("diag"),
-    };
+    let (p, req) = range_zero_survey(d);
     let r = run(&p, &req).unwrap();
     println!("{} | {:?} -> {:?}", r.headline(), r.gap.before, r.gap.after);
     assert_eq!(r.verdict, Verdict::Effect);
@@ -198,4 +205,62 @@ fn diagnose_command_names_missing_patches_and_unused_control_points() {
         err.contains("--control-points c.csv") && err.contains("not used"),
         "{err}"
     );
+}
+
+/// The diagnosis publishes its files as one set: one that cannot write all of them (the disk
+/// fills: a tmpfs holding the previous set and half of a new one) fails naming a file of the
+/// output folder, and leaves the previous set byte for byte with no temporary.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_diagnosis_that_cannot_write_its_set_keeps_the_previous_one() {
+    use kinescan::app::diagnose::run;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (p, req) = range_zero_survey(d);
+    run(&p, &req).unwrap();
+    let set_pages: u64 = std::fs::read_dir(&req.out_dir)
+        .unwrap()
+        .map(|e| crate::common::pages(e.unwrap().metadata().unwrap().len()))
+        .sum();
+    std::fs::remove_dir_all(&req.out_dir).unwrap();
+    std::fs::create_dir(&req.out_dir).unwrap();
+    let kib = 4 * (set_pages + set_pages / 2);
+    let test = "a_diagnosis_that_cannot_write_its_set_keeps_the_previous_one";
+    let Some(_tmpfs) = crate::common::mount_tmpfs(&req.out_dir, kib, test) else {
+        return;
+    };
+    run(&p, &req).unwrap();
+    let before = crate::common::tree(&req.out_dir);
+    assert!(before.len() > 4, "{before:?}");
+    // Another split seed, so the new set differs from the old byte for byte.
+    let reseeded = config::load(&d.join("pipeline.toml"), &["diagnose.seed=12".into()]).unwrap();
+    let e = run(&reseeded, &req).unwrap_err().to_string();
+    assert!(e.contains("No space left") && e.contains("diag/"), "{e}");
+    assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
+    assert_eq!(crate::common::tree(&req.out_dir), before);
+}
+
+/// Every file the diagnosis may write is checked against its inputs before any work, the plots
+/// too: the patch file given as `<out>/before_after.png` is refused naming both, unchanged.
+#[test]
+fn a_diagnosis_output_that_is_an_input_is_refused() {
+    use kinescan::app::diagnose::{run, Request};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    city_block(d, "", 11);
+    let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
+    std::fs::create_dir(d.join("diag")).unwrap();
+    let patches = d.join("diag/before_after.png");
+    std::fs::copy(d.join("survey/patches.csv"), &patches).unwrap();
+    let before = crate::common::tree(d);
+    let req = Request {
+        patches,
+        out_dir: d.join("diag"),
+    };
+    let e = run(&p, &req).unwrap_err().to_string();
+    assert!(
+        e.contains("--out before_after.png") && e.contains("--patches"),
+        "{e}"
+    );
+    assert_eq!(crate::common::tree(d), before, "an input or output changed");
 }

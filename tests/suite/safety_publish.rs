@@ -4,7 +4,6 @@
 use crate::common;
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
-use sha2::{Digest, Sha256};
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -20,38 +19,13 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
-/// SHA-256 of every file under `dir`, by relative path (sorted); the stem's lock file (empty,
-/// kept) left out.
-fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir(dir).unwrap() {
-        let e = e.unwrap();
-        let name = e.file_name().to_string_lossy().into_owned();
-        if name.ends_with(".kinescan-lock") {
-            continue;
-        }
-        if e.file_type().unwrap().is_dir() {
-            for (n, h) in tree(&e.path()) {
-                out.push((format!("{name}/{n}"), h));
-            }
-        } else {
-            out.push((
-                name,
-                Sha256::digest(std::fs::read(e.path()).unwrap()).to_vec(),
-            ));
-        }
-    }
-    out.sort();
-    out
-}
-
 #[test]
 fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
-    let before = tree(&d.join("out"));
+    let before = common::tree(&d.join("out"));
     // t0 far before the trajectory: every return falls outside it.
     let o = kinescan(d, &["run", "pipeline.toml", "--set", "time.t0_s=1000"]);
     let e = stderr(&o);
@@ -61,7 +35,7 @@ fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
         "{e}"
     );
     assert_eq!(
-        tree(&d.join("out")),
+        common::tree(&d.join("out")),
         before,
         "the failed run changed the outputs"
     );
@@ -78,7 +52,7 @@ fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_ne!(tree(&d.join("out")), before);
+    assert_ne!(common::tree(&d.join("out")), before);
 }
 
 /// Writes a profile file of `profiles` profiles from counter 100 (36 returns each at 10 m);
@@ -141,7 +115,7 @@ fn a_run_failing_late_publishes_nothing() {
     let mut args = vec!["run", "pipeline.toml"];
     args.extend(split);
     assert!(kinescan(d, &args).status.success());
-    let before = tree(&d.join("out"));
+    let before = common::tree(&d.join("out"));
     assert_eq!(before.len(), 9, "8 parts and the report: {before:?}");
     // A counter decrease in the last profile, after six parts are full.
     profiles(&d.join("late_decrease.ksprof"), 1000, |i, r| {
@@ -174,7 +148,7 @@ fn a_run_failing_late_publishes_nothing() {
         let e = stderr(&o);
         assert!(!o.status.success() && e.contains(want), "{input}: {e}");
         assert_eq!(
-            tree(&d.join("out")),
+            common::tree(&d.join("out")),
             before,
             "{input}: the failed run changed the outputs"
         );
@@ -311,7 +285,7 @@ fn sigint_sigterm_and_sigkill_leave_the_old_outputs_and_no_temporary() {
     std::fs::create_dir(d.join("out")).unwrap();
     std::fs::write(d.join("out/day.las"), b"previous LAS").unwrap();
     std::fs::write(d.join("out/day.report.json"), b"{}").unwrap();
-    let before = tree(&d.join("out"));
+    let before = common::tree(&d.join("out"));
     for (signal, name) in [("-INT", "SIGINT"), ("-TERM", "SIGTERM")] {
         let child = start_long_run(d);
         let kill = Command::new("kill")
@@ -323,7 +297,11 @@ fn sigint_sigterm_and_sigkill_leave_the_old_outputs_and_no_temporary() {
         assert_eq!(o.status.code(), Some(130), "{name}: {e}");
         assert_eq!(e.lines().count(), 1, "{name}: one line: {e}");
         assert!(e.contains("interrupted"), "{name}: {e}");
-        assert_eq!(tree(&d.join("out")), before, "{name} changed the outputs");
+        assert_eq!(
+            common::tree(&d.join("out")),
+            before,
+            "{name} changed the outputs"
+        );
         assert_no_temp(&d.join("out"));
     }
     // SIGKILL cannot be caught: the staging folder stays until the next run removes it.
@@ -336,7 +314,11 @@ fn sigint_sigterm_and_sigkill_leave_the_old_outputs_and_no_temporary() {
         "{:?}",
         names(&d.join("out"))
     );
-    assert_eq!(tree(&d.join("out")), before, "SIGKILL changed the outputs");
+    assert_eq!(
+        common::tree(&d.join("out")),
+        before,
+        "SIGKILL changed the outputs"
+    );
     let o = kinescan(d, &["run", "long.toml"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_no_temp(&d.join("out"));
@@ -396,34 +378,6 @@ fn two_concurrent_runs_never_leave_a_las_and_a_report_of_different_runs() {
     );
 }
 
-/// Unmounts a test's tmpfs when dropped.
-#[cfg(target_os = "linux")]
-struct Tmpfs<'a>(&'a Path);
-
-#[cfg(target_os = "linux")]
-impl Drop for Tmpfs<'_> {
-    fn drop(&mut self) {
-        let _ = Command::new("umount").arg(self.0).status();
-    }
-}
-
-/// Mounts a tmpfs of `size_kib` KiB on the existing folder `dir`; None (with the reason
-/// printed as a skip of `test`) where the test cannot mount one.
-#[cfg(target_os = "linux")]
-fn mount_tmpfs<'a>(dir: &'a Path, size_kib: u64, test: &str) -> Option<Tmpfs<'a>> {
-    let mounted = Command::new("mount")
-        .args(["-t", "tmpfs", "-o", &format!("size={size_kib}k"), "tmpfs"])
-        .arg(dir)
-        .output();
-    match mounted {
-        Ok(o) if o.status.success() => Some(Tmpfs(dir)),
-        other => {
-            eprintln!("SKIPPED {test}: cannot mount a tmpfs ({other:?})");
-            None
-        }
-    }
-}
-
 #[cfg(target_os = "linux")]
 #[test]
 fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
@@ -432,12 +386,12 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
     let out = d.join("out");
     std::fs::create_dir(&out).unwrap();
     // 1 MiB: room for the first run's outputs (1,800 points), not for the second's (36,000).
-    let Some(_tmpfs) = mount_tmpfs(&out, 1024, "a_full_disk_keeps_the_old_outputs") else {
+    let Some(_tmpfs) = common::mount_tmpfs(&out, 1024, "a_full_disk_keeps_the_old_outputs") else {
         return;
     };
     common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
-    let before = tree(&out);
+    let before = common::tree(&out);
     profiles(&d.join("big.ksprof"), 1000, |_, _| {});
     let o = kinescan(
         d,
@@ -455,13 +409,12 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
         "{e}"
     );
     assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
-    assert_eq!(tree(&out), before, "the failed run changed the outputs");
+    assert_eq!(
+        common::tree(&out),
+        before,
+        "the failed run changed the outputs"
+    );
     assert_no_temp(&out);
-}
-
-/// Pages (4 KiB, tmpfs's block) a file of `bytes` occupies.
-fn pages(bytes: u64) -> u64 {
-    bytes.div_ceil(4096)
 }
 
 /// The disk fills at the report: a tmpfs sized from a first run's measured LAS and report so
@@ -476,17 +429,20 @@ fn a_disk_full_at_the_report_keeps_the_old_las_and_report() {
     common::one_pass_survey(d, 50);
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
     let size = |f: &str| std::fs::metadata(d.join("out").join(f)).unwrap().len();
-    let (las, report) = (pages(size("day.las")), pages(size("day.report.json")));
+    let (las, report) = (
+        common::pages(size("day.las")),
+        common::pages(size("day.report.json")),
+    );
     std::fs::remove_dir_all(d.join("out")).unwrap();
     let out = d.join("out");
     std::fs::create_dir(&out).unwrap();
     // Old LAS and report, the new LAS, and half the new report's pages.
     let kib = 4 * (2 * las + report + report / 2);
-    let Some(_tmpfs) = mount_tmpfs(&out, kib, "a_disk_full_at_the_report") else {
+    let Some(_tmpfs) = common::mount_tmpfs(&out, kib, "a_disk_full_at_the_report") else {
         return;
     };
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
-    let before = tree(&out);
+    let before = common::tree(&out);
     let o = kinescan(d, &["run", "pipeline.toml"]);
     let e = stderr(&o);
     assert!(!o.status.success(), "{e}");
@@ -495,7 +451,11 @@ fn a_disk_full_at_the_report_keeps_the_old_las_and_report() {
         "{e}"
     );
     assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
-    assert_eq!(tree(&out), before, "the failed run changed the outputs");
+    assert_eq!(
+        common::tree(&out),
+        before,
+        "the failed run changed the outputs"
+    );
     assert_no_temp(&out);
     // The next run, with fewer points, fits and publishes its own set.
     profiles(&d.join("small.ksprof"), 10, |_, _| {});
@@ -507,6 +467,6 @@ fn a_disk_full_at_the_report_keeps_the_old_las_and_report() {
     ];
     let o = kinescan(d, &small);
     assert!(o.status.success(), "{}", stderr(&o));
-    assert_ne!(tree(&out), before);
+    assert_ne!(common::tree(&out), before);
     assert_no_temp(&out);
 }

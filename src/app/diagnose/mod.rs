@@ -18,10 +18,12 @@ pub mod report;
 pub mod reprocess;
 pub mod select;
 
-use crate::io::patches::read_patches;
+use crate::io::atomic::parent_dir;
+use crate::io::patches::{read_patches, PlanarPatch};
+use crate::io::publish::{remove_unproduced, OutputSet};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
-use crate::{Error, Result};
-use std::path::PathBuf;
+use crate::Result;
+use std::path::{Path, PathBuf};
 
 /// What to diagnose against and where to write.
 #[derive(Debug, Clone)]
@@ -70,7 +72,34 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
     let observed = observe::observe(p, &patches, &req.patches, &cfg)?;
     let set = &observed.set;
     let stats = statistics(set, &cfg)?;
-    std::fs::create_dir_all(&req.out_dir).map_err(|e| Error::io(&req.out_dir, e))?;
+    let mut outputs = OutputSet::new("diagnosis");
+    let json = req.out_dir.join(report::DIAGNOSIS_JSON);
+    let staged = outputs.stage(&json)?;
+    let dir = parent_dir(&staged);
+    let d =
+        write_outputs(p, req, &patches, observed, stats, dir).map_err(|e| outputs.user_error(e))?;
+    let previous: Vec<PathBuf> = output_names()
+        .iter()
+        .map(|n| req.out_dir.join(n))
+        .filter(|f| f.is_file())
+        .collect();
+    let produced = outputs.publish(std::slice::from_ref(&json))?;
+    remove_unproduced(&previous, &produced)?;
+    Ok(d)
+}
+
+/// Everything after the statistics, written into the staging folder `dir` (published by
+/// [`run`] as one set): the re-processing, the plots, the report.
+fn write_outputs(
+    p: &LoadedPipeline,
+    req: &Request,
+    patches: &[PlanarPatch],
+    observed: observe::Observed,
+    stats: Statistics,
+    dir: &Path,
+) -> Result<report::Diagnosis> {
+    let cfg = p.config.diagnose.clone().unwrap_or_default();
+    let set = &observed.set;
     let ids = |refs: &[usize]| -> Vec<String> {
         refs.iter().map(|&r| set.reference_ids[r].clone()).collect()
     };
@@ -80,14 +109,14 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
         (report::Verdict::Effect, _) => {
             let lines = reprocess::set_lines(&p.config, &stats.applied)?;
             let corrected = reprocess::corrected(p, &lines, &req.out_dir)?;
-            let again = observe::observe(&corrected, &patches, &req.patches, &cfg)?;
+            let again = observe::observe(&corrected, patches, &req.patches, &cfg)?;
             let held = references_of(&again.set, &held_out_ids);
             let (after, normalised) = gap_of(&again.set, &held)?;
             reprocess::write_pipeline(
                 &corrected.config,
                 &p.path,
                 &lines,
-                &req.out_dir.join(reprocess::CORRECTED_PIPELINE),
+                &dir.join(reprocess::CORRECTED_PIPELINE),
             )?;
             (lines, after, normalised)
         }
@@ -109,12 +138,12 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
             .map(|(o, &z)| (c.value(&o.covariates), z))
             .collect();
         let plot = plots::covariate_plot(&t.covariate, &points, &t.bins);
-        let file = format!("residuals_{}.png", t.covariate);
-        plot_files.push(plots::write_png(&plot, &req.out_dir, &file)?);
+        let file = plots::covariate_file(&t.covariate);
+        plot_files.push(plots::write_png(&plot, dir, &file)?);
     }
     if !after_normalised.is_empty() {
         let plot = plots::before_after_plot(&before_normalised, &after_normalised);
-        plot_files.push(plots::write_png(&plot, &req.out_dir, "before_after.png")?);
+        plot_files.push(plots::write_png(&plot, dir, plots::BEFORE_AFTER)?);
     }
     let d = report::Diagnosis {
         verdict: stats.verdict,
@@ -153,7 +182,7 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
         counts: observed.counts,
         plots: plot_files,
     };
-    d.write(&req.out_dir, &p.path)?;
+    d.write(dir, &p.path)?;
     Ok(d)
 }
 
@@ -178,13 +207,28 @@ fn held_out_values(set: &model::ObservationSet, refs: &[usize], values: &[f64]) 
 fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
     let mut inputs = crate::pipeline::files::inputs(p);
     inputs.push(("--patches".into(), req.patches.clone()));
-    let names = [
+    let names = output_names();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(&req.out_dir, &names))
+}
+
+/// Every file a diagnosis may write into its folder (which plots depends on the covariates).
+fn output_names() -> Vec<String> {
+    let fixed = [
         report::DIAGNOSIS_JSON,
         report::SUMMARY_MD,
         reprocess::CORRECTED_PIPELINE,
         reprocess::CORRECTED_LAS,
+        plots::BEFORE_AFTER,
     ];
-    crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(&req.out_dir, &names))
+    let covariates = model::Covariate::ALL
+        .iter()
+        .map(|c| plots::covariate_file(c.name()));
+    fixed
+        .into_iter()
+        .map(String::from)
+        .chain(covariates)
+        .collect()
 }
 
 /// Runs the statistics on `set` ([`analysis::analyse`]) and keeps what the report needs.

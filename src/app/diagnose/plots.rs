@@ -11,6 +11,14 @@ use std::path::Path;
 /// At most this many points are drawn in a scatter (evenly thinned: the PNG stays readable and
 /// its bytes depend only on the data).
 const MAX_SCATTER: usize = 4000;
+/// The before/after histograms' file.
+pub const BEFORE_AFTER: &str = "before_after.png";
+
+/// The file of the plot against covariate `name`.
+pub fn covariate_file(name: &str) -> String {
+    format!("residuals_{name}.png")
+}
+
 /// Image size (px).
 const SIZE: (u32, u32) = (900, 560);
 

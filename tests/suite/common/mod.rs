@@ -233,3 +233,61 @@ pub fn plot_pixels(path: &Path) -> PlotPixels {
         black: count([0, 0, 0]),
     }
 }
+
+/// Unmounts a test's tmpfs when dropped.
+#[cfg(target_os = "linux")]
+pub struct Tmpfs<'a>(&'a Path);
+
+#[cfg(target_os = "linux")]
+impl Drop for Tmpfs<'_> {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("umount").arg(self.0).status();
+    }
+}
+
+/// Mounts a tmpfs of `size_kib` KiB on the existing folder `dir`; None (with the reason
+/// printed as a skip of `test`) where the test cannot mount one.
+#[cfg(target_os = "linux")]
+pub fn mount_tmpfs<'a>(dir: &'a Path, size_kib: u64, test: &str) -> Option<Tmpfs<'a>> {
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", &format!("size={size_kib}k"), "tmpfs"])
+        .arg(dir)
+        .output();
+    match mounted {
+        Ok(o) if o.status.success() => Some(Tmpfs(dir)),
+        other => {
+            eprintln!("SKIPPED {test}: cannot mount a tmpfs ({other:?})");
+            None
+        }
+    }
+}
+
+/// Pages (4 KiB, tmpfs's block) a file of `bytes` occupies.
+pub fn pages(bytes: u64) -> u64 {
+    bytes.div_ceil(4096)
+}
+
+/// SHA-256 of every file under `dir`, by relative path (sorted); the stem's lock file (empty,
+/// kept) left out.
+pub fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if name.ends_with(".kinescan-lock") {
+            continue;
+        }
+        if e.file_type().unwrap().is_dir() {
+            for (n, h) in tree(&e.path()) {
+                out.push((format!("{name}/{n}"), h));
+            }
+        } else {
+            out.push((
+                name,
+                <sha2::Sha256 as sha2::Digest>::digest(std::fs::read(e.path()).unwrap()).to_vec(),
+            ));
+        }
+    }
+    out.sort();
+    out
+}
