@@ -20,7 +20,7 @@ pub mod select;
 
 use crate::io::atomic::parent_dir;
 use crate::io::patches::{read_patches, PlanarPatch};
-use crate::io::publish::{remove_unproduced, OutputSet};
+use crate::io::publish::{conclude, OutputSet};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
 use std::path::{Path, PathBuf};
@@ -75,17 +75,13 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
     let mut outputs = OutputSet::new("diagnosis");
     let json = req.out_dir.join(report::DIAGNOSIS_JSON);
     let staged = outputs.stage(&json)?;
-    let dir = parent_dir(&staged);
-    let d =
-        write_outputs(p, req, &patches, observed, stats, dir).map_err(|e| outputs.user_error(e))?;
+    let written = write_outputs(p, req, &patches, observed, stats, parent_dir(&staged));
     let previous: Vec<PathBuf> = output_names()
         .iter()
         .map(|n| req.out_dir.join(n))
         .filter(|f| f.is_file())
         .collect();
-    let produced = outputs.publish(std::slice::from_ref(&json))?;
-    remove_unproduced(&previous, &produced)?;
-    Ok(d)
+    conclude(outputs, written, &json, &previous)
 }
 
 /// Everything after the statistics, written into the staging folder `dir` (published by
