@@ -17,7 +17,7 @@
 //! `B = H^T D^-1 X`, with `M` factorised by block Cholesky: O(n p^2 + K 6^3 p) for `n` returns,
 //! `p` columns and `K` knots, whatever the survey's length.
 
-use super::fit::RowFn;
+use super::design::RowFn;
 use super::model::{Observation, ObservationSet};
 use nalgebra::{DMatrix, Matrix6, SMatrix};
 
@@ -37,13 +37,18 @@ struct Row<'a> {
     w: f64,
 }
 
-/// The knots (grid indices, ascending) the returns on `selected` touch, each return's left
-/// knot and weight, and each knot's sigmas (from the first return touching it).
+/// The knots (grid indices from the set's first return, ascending) the returns on `selected`
+/// touch, each return's left knot and weight, and each knot's sigmas (from the first return
+/// touching it).
 fn knots<'a>(
     set: &'a ObservationSet,
     selected: &[bool],
-    t0: f64,
 ) -> (Vec<i64>, Vec<Row<'a>>, Vec<[f64; 6]>) {
+    let t0 = set
+        .observations
+        .iter()
+        .map(|o| o.covariates.time_s)
+        .fold(f64::INFINITY, f64::min);
     let grid = |t: f64| ((t - t0) / KNOT_S).floor() as i64;
     let mut idx: Vec<i64> = set
         .observations
@@ -113,12 +118,7 @@ pub(crate) fn gram(
     row: &RowFn,
     tau: [f64; 2],
 ) -> DMatrix<f64> {
-    let t0 = set
-        .observations
-        .iter()
-        .map(|o| o.covariates.time_s)
-        .fold(f64::INFINITY, f64::min);
-    let (idx, rows, sigma) = knots(set, selected, t0);
+    let (idx, rows, sigma) = knots(set, selected);
     let nk = idx.len();
     let (q_diag, q_next) = prior_precision(&idx, &sigma, tau);
     let mut m_diag: Vec<Matrix6<f64>> = q_diag
@@ -194,7 +194,7 @@ fn whitened_gram(diag: &[Matrix6<f64>], next: &[Matrix6<f64>], b: &DMatrix<f64>)
 
 #[cfg(test)]
 mod tests {
-    use super::super::fit::catalogue_row;
+    use super::super::design::catalogue_row;
     use super::super::model::synthetic::{draw, Scenario};
     use super::super::model::N_EFFECTS;
     use super::*;
@@ -202,12 +202,7 @@ mod tests {
     /// Dense reference: `C = D + H Sigma H^T` with `Sigma` the Gauss-Markov covariance of the
     /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses).
     fn dense_gram(set: &ObservationSet, selected: &[bool], tau: [f64; 2]) -> DMatrix<f64> {
-        let t0 = set
-            .observations
-            .iter()
-            .map(|o| o.covariates.time_s)
-            .fold(f64::INFINITY, f64::min);
-        let (idx, rows, sigma) = knots(set, selected, t0);
+        let (idx, rows, sigma) = knots(set, selected);
         let (n, nk) = (rows.len(), idx.len());
         let mut h = DMatrix::<f64>::zeros(n, 6 * nk);
         let mut x = DMatrix::<f64>::zeros(n, N_EFFECTS + 1);

@@ -8,16 +8,14 @@
 //! within and between visits: [`super::continuous`].
 
 use super::continuous;
-use super::model::{signature_index, Effect, Observation, ObservationSet, N_EFFECTS};
+use super::design::{catalogue_row, RowFn};
+use super::model::{signature_index, Effect, ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
-
-/// One design row, sparse: `(column, value)` entries, each column at most once.
-pub(crate) type RowFn<'a> = dyn Fn(&Observation, &mut Vec<(usize, f64)>) + Sync + 'a;
 
 /// Per-visit sums on the columns its rows touch: `X^T D^-1 X`, `G^T D^-1 X`, `G^T D^-1 G`.
 struct VisitStats {
@@ -213,12 +211,6 @@ pub(crate) fn count_on(set: &ObservationSet, refs: &[usize]) -> usize {
         .iter()
         .filter(|o| selected.get(o.reference) == Some(&true))
         .count()
-}
-
-/// The catalogue's design row: every signature, then the residual (column [`N_EFFECTS`]).
-pub(crate) fn catalogue_row(o: &Observation, out: &mut Vec<(usize, f64)>) {
-    out.extend(o.signature.iter().copied().enumerate());
-    out.push((N_EFFECTS, o.residual_m));
 }
 
 /// `[S | r]^T C^-1 [S | r]` on a set of references, and its number of observations.

@@ -8,6 +8,7 @@
 
 pub mod analysis;
 pub mod continuous;
+mod design;
 pub mod fit;
 pub mod locate;
 pub mod metrics;

@@ -8,7 +8,7 @@
 //! navigation gradients, `z_v` the navigation error shared by the visit, `P_v` its covariance,
 //! visits independent. With correlation times ([`ObservationSet::nav_tau_s`]) the navigation
 //! error is instead a Gauss-Markov process in time, continuous within and between visits
-//! (`super::continuous`).
+//! (docs/diagnosis.md, "The residual model").
 
 use crate::{Error, Result};
 
