@@ -13,6 +13,7 @@ pub mod fit;
 pub mod locate;
 pub mod metrics;
 pub mod model;
+pub mod observability;
 pub mod observe;
 pub mod plots;
 pub mod report;

@@ -9,8 +9,12 @@
 //! (`crate::uncertainty::PointGeometry::jacobian_e`). Every return read is counted in exactly
 //! one class of [`ObserveCounts`].
 
+mod counts;
+mod patch_index;
+
+pub use counts::{ObserveCounts, Observed};
+
 use super::model::{Covariates, Effect, Observation, ObservationSet, Side, Visit};
-use crate::geo::ellipsoid::r_n_to_e;
 use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::PlanarPatch;
@@ -22,54 +26,14 @@ use crate::timing::ScannerClock;
 use crate::trajectory::{PoseCursor, Trajectory};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
-use nalgebra::{Matrix3, Vector3};
+use nalgebra::Vector3;
+use patch_index::{PatchFrame, PatchIndex, Place};
 use rayon::prelude::*;
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 use std::path::Path;
 
-/// Returns beyond `diagnose.plane_tolerance_m` but within this distance (m) of a
-/// patch plane, inside its rectangle, are counted as `off_plane` (clutter in front of or behind
-/// the patch); further ones as `off_patches`.
-const NEAR_PLANE_M: f64 = 1.0;
-/// Cell size (m) of the ECEF grid that finds the patches near a point.
-const GRID_CELL_M: f64 = 8.0;
 /// Returns per parallel work item of the first pass.
 const CHUNK_RETURNS: usize = 1 << 15;
-
-/// What happened to every return read: `returns_read` = sum of `rejected` + `off_patches` +
-/// `off_plane` + `on_patches`; `on_patches` = `in_short_visits` + `thinned` + `observations`.
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
-pub struct ObserveCounts {
-    /// Returns read from every profile file.
-    pub returns_read: u64,
-    /// Returns that cannot be georeferenced, by reason (as in `kinescan run`).
-    pub rejected: BTreeMap<RejectReason, u64>,
-    /// Georeferenced, not inside any patch rectangle (less its edge margin) near its plane.
-    pub off_patches: u64,
-    /// Inside a patch rectangle but beyond the plane tolerance (within 1 m of the plane).
-    pub off_plane: u64,
-    /// On a patch (inside its rectangle, within the plane tolerance).
-    pub on_patches: u64,
-    /// On a patch, in a visit with fewer than `min_per_visit` returns: left out.
-    pub in_short_visits: u64,
-    /// On a patch, left out by the even thinning of long visits.
-    pub thinned: u64,
-    /// Kept as observations.
-    pub observations: u64,
-    /// Patches read from the patch file.
-    pub patches_read: usize,
-    /// Patch ids without any observation.
-    pub patches_without_observations: Vec<String>,
-}
-
-/// The observations of a survey and the account of every return.
-#[derive(Debug, Clone)]
-pub struct Observed {
-    /// The observations.
-    pub set: ObservationSet,
-    /// What happened to every return.
-    pub counts: ObserveCounts,
-}
 
 /// Checks that a pipeline can be diagnosed: per-point uncertainty needs `[uncertainty]` and
 /// the SMRMSG file; errors name the pipeline file and the missing key.
@@ -288,109 +252,6 @@ impl<'a> ReturnModel<'a> {
             x_e,
         })
     }
-}
-
-/// A patch in ECEF: centre, rows (length axis, height axis, normal), shrunk half sizes.
-struct PatchFrame {
-    centre_e: Vector3<f64>,
-    axes_e: Matrix3<f64>,
-    half_m: (f64, f64),
-    /// Normal in NED at the patch centre (for the survey sigma in the visit covariance).
-    normal_n: Vector3<f64>,
-    sigma_m: f64,
-}
-
-/// Where a point lies relative to the patches.
-enum Place {
-    Off,
-    OffPlane,
-    On(usize),
-}
-
-/// The patches on an ECEF grid: a point is tested only against the patches of its cell.
-struct PatchIndex {
-    frames: Vec<PatchFrame>,
-    cells: HashMap<[i64; 3], Vec<usize>>,
-    tolerance_m: f64,
-}
-
-impl PatchIndex {
-    fn new(patches: &[PlanarPatch], opts: &DiagnoseConfig) -> Self {
-        let mut cells: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-        let frames: Vec<PatchFrame> = patches
-            .iter()
-            .map(|p| {
-                let r_enu_e = crate::geo::ellipsoid::r_enu_to_e(p.lat_rad, p.lon_rad);
-                let (l, h) = p.axes_enu();
-                let n = p.normal_enu();
-                let axes_e = Matrix3::from_rows(&[
-                    (r_enu_e * l).transpose(),
-                    (r_enu_e * h).transpose(),
-                    (r_enu_e * n).transpose(),
-                ]);
-                let n_e = r_enu_e * n;
-                PatchFrame {
-                    centre_e: p.centre_ecef(),
-                    axes_e,
-                    half_m: (
-                        p.half_length_m - opts.edge_margin_m,
-                        p.half_height_m - opts.edge_margin_m,
-                    ),
-                    normal_n: r_n_to_e(p.lat_rad, p.lon_rad).transpose() * n_e,
-                    sigma_m: p.sigma_m.unwrap_or(0.0),
-                }
-            })
-            .collect();
-        for (k, f) in frames.iter().enumerate() {
-            let (hl, hh) = (f.half_m.0.max(0.0), f.half_m.1.max(0.0));
-            let extent = Vector3::new(hl, hh, NEAR_PLANE_M);
-            // Bounding box of the patch box in ECEF: |R^T| * extent about the centre.
-            let half_box = f.axes_e.transpose().abs() * extent;
-            let lo = cell_of(&(f.centre_e - half_box));
-            let hi = cell_of(&(f.centre_e + half_box));
-            for i in lo[0]..=hi[0] {
-                for j in lo[1]..=hi[1] {
-                    for m in lo[2]..=hi[2] {
-                        cells.entry([i, j, m]).or_default().push(k);
-                    }
-                }
-            }
-        }
-        PatchIndex {
-            frames,
-            cells,
-            tolerance_m: opts.plane_tolerance_m,
-        }
-    }
-
-    /// The patch a point lies on (nearest plane when rectangles overlap).
-    fn place(&self, x_e: &Vector3<f64>) -> Place {
-        let Some(list) = self.cells.get(&cell_of(x_e)) else {
-            return Place::Off;
-        };
-        let mut best: Option<(usize, f64)> = None;
-        let mut near = false;
-        for &k in list {
-            let f = &self.frames[k];
-            let c = f.axes_e * (x_e - f.centre_e);
-            if c.x.abs() > f.half_m.0 || c.y.abs() > f.half_m.1 || c.z.abs() > NEAR_PLANE_M {
-                continue;
-            }
-            near = true;
-            if c.z.abs() <= self.tolerance_m && best.is_none_or(|(_, d)| c.z.abs() < d) {
-                best = Some((k, c.z.abs()));
-            }
-        }
-        match (best, near) {
-            (Some((k, _)), _) => Place::On(k),
-            (None, true) => Place::OffPlane,
-            (None, false) => Place::Off,
-        }
-    }
-}
-
-fn cell_of(x: &Vector3<f64>) -> [i64; 3] {
-    [0, 1, 2].map(|i| (x[i] / GRID_CELL_M).floor() as i64)
 }
 
 /// Per-chunk tallies of the first pass.

@@ -1,0 +1,40 @@
+//! The account of every return the diagnosis reads, and the observations it keeps.
+
+use crate::app::diagnose::model::ObservationSet;
+use crate::pipeline::report::RejectReason;
+use std::collections::BTreeMap;
+
+/// What happened to every return read: `returns_read` = sum of `rejected` + `off_patches` +
+/// `off_plane` + `on_patches`; `on_patches` = `in_short_visits` + `thinned` + `observations`.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct ObserveCounts {
+    /// Returns read from every profile file.
+    pub returns_read: u64,
+    /// Returns that cannot be georeferenced, by reason (as in `kinescan run`).
+    pub rejected: BTreeMap<RejectReason, u64>,
+    /// Georeferenced, not inside any patch rectangle (less its edge margin) near its plane.
+    pub off_patches: u64,
+    /// Inside a patch rectangle but beyond the plane tolerance (within 1 m of the plane).
+    pub off_plane: u64,
+    /// On a patch (inside its rectangle, within the plane tolerance).
+    pub on_patches: u64,
+    /// On a patch, in a visit with fewer than `min_per_visit` returns: left out.
+    pub in_short_visits: u64,
+    /// On a patch, left out by the even thinning of long visits.
+    pub thinned: u64,
+    /// Kept as observations.
+    pub observations: u64,
+    /// Patches read from the patch file.
+    pub patches_read: usize,
+    /// Patch ids without any observation.
+    pub patches_without_observations: Vec<String>,
+}
+
+/// The observations of a survey and the account of every return.
+#[derive(Debug, Clone)]
+pub struct Observed {
+    /// The observations.
+    pub set: ObservationSet,
+    /// What happened to every return.
+    pub counts: ObserveCounts,
+}

@@ -1,0 +1,362 @@
+//! Which catalogue effect explains the gap: after the observability of the catalogue
+//! ([`super::observability`]), candidates (each group alone, every pair, greedy forward
+//! additions) fitted on the fit references and judged on the held-out references, with likelihood-ratio significance under Holm control, and the verdict
+//! `effect` | `none` | `unexplained` (docs/conventions.md §8; method: docs/diagnosis.md,
+//! "Statistics").
+
+use super::fit::{Fit, Normals, Split};
+use super::metrics::{chi2_sf, holm_adjusted, normal_sf};
+use super::model::{Effect, ObservationSet, Theta};
+use super::observability::{observability_of, Group, Observability};
+use crate::Result;
+
+/// Default family-wise error rate of the selection's tests.
+pub const DEFAULT_ALPHA: f64 = 0.01;
+/// Share of the held-out excess chi2 an explanation must remove to "close" a rejected gap
+/// (unless what remains passes the chi2 test).
+pub const CLOSES_SHARE: f64 = 0.5;
+/// Most groups in one explanation.
+const MAX_GROUPS: usize = 4;
+
+/// `effect`, `none` or `unexplained` (docs/conventions.md §8).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Verdict {
+    /// Catalogue effect(s) significant on the fit references, confirmed on the held-out
+    /// references, and (when the model without them is rejected) closing the held-out gap:
+    /// removing at least [`CLOSES_SHARE`] of its excess chi2, or leaving a chi2 the test
+    /// accepts.
+    Effect,
+    /// The model holds on the held-out references and no effect is significant.
+    None,
+    /// The model is rejected on the held-out references and no catalogue combination closes
+    /// the gap: no effect is named.
+    Unexplained,
+}
+
+impl Verdict {
+    /// The report's word.
+    pub fn name(self) -> &'static str {
+        match self {
+            Verdict::Effect => "effect",
+            Verdict::None => "none",
+            Verdict::Unexplained => "unexplained",
+        }
+    }
+}
+
+/// One explanation tried.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Candidate {
+    /// Indices into [`Observability::groups`].
+    pub groups: Vec<usize>,
+    /// GLS fit of the groups' preferred members on the fit references.
+    pub fit: Fit,
+    /// Likelihood-ratio p-value on the fit references: against no effect for a single group;
+    /// for a pair, the largest of that and each member's test given the other (both needed);
+    /// for a greedy addition, the added group given the rest.
+    pub p_value: f64,
+    /// Holm-adjusted `p_value` among the candidates of its step.
+    pub p_holm: f64,
+    /// Significant under Holm control: `p_holm <= alpha`.
+    pub significant: bool,
+    /// Held-out `chi2` with the fit's estimates.
+    pub chi2_held_out: f64,
+    /// Held-out chi2 removed, relative to the model it extends (no effect, or the smaller
+    /// explanation for a greedy addition).
+    pub held_out_reduction: f64,
+    /// One-sided p-value of the held-out score along the correction (the held-out data were
+    /// not used to fit it: N(0, 1) under no effect).
+    pub held_out_p_value: f64,
+}
+
+impl Candidate {
+    fn supported(&self, alpha: f64) -> bool {
+        self.held_out_reduction > 0.0 && self.held_out_p_value < alpha
+    }
+}
+
+/// The test of the model without any effect on the held-out references.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NullTest {
+    /// Held-out `r^T C^-1 r`.
+    pub chi2: f64,
+    /// Held-out returns (degrees of freedom).
+    pub n: usize,
+    /// `P(chi2_n > chi2)`.
+    pub p_value: f64,
+    /// `p_value < alpha`.
+    pub rejected: bool,
+}
+
+impl NullTest {
+    fn new(chi2: f64, n: usize, alpha: f64) -> Self {
+        let p_value = chi2_sf(chi2, n);
+        NullTest {
+            chi2,
+            n,
+            p_value,
+            rejected: p_value < alpha,
+        }
+    }
+}
+
+/// The result of [`select`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Selection {
+    /// The verdict.
+    pub verdict: Verdict,
+    /// Named effects (verdict `effect`): every member of each chosen group, the preferred first.
+    pub effects: Vec<Effect>,
+    /// Estimate of each named effect (fit references), in the unit of its name: a
+    /// non-preferred member's estimate is from the same explanation with it in place of the
+    /// preferred member.
+    pub estimate: Vec<f64>,
+    /// 1-sigma of each estimate.
+    pub sigma: Vec<f64>,
+    /// The explanation to re-process with (the chosen groups' preferred members, fitted on the
+    /// fit references); also set when the verdict is `unexplained` but a partial explanation
+    /// was significant, so a report can say how little it closes.
+    pub chosen: Option<Fit>,
+    /// Share of the held-out excess chi2 (`chi2 - n`) the chosen explanation removes, when the
+    /// excess is positive.
+    pub closure: Option<f64>,
+    /// The model without any effect, on the held-out references.
+    pub null: NullTest,
+    /// The same test after the chosen explanation (held-out references, estimates from the
+    /// fit references).
+    pub remaining: Option<NullTest>,
+    /// Observability on the fit references.
+    pub observability: Observability,
+    /// Every candidate tried, largest held-out reduction first.
+    pub candidates: Vec<Candidate>,
+    /// Family-wise error rate used.
+    pub alpha: f64,
+}
+
+impl Selection {
+    /// The correction `theta` of the named explanation (none unless the verdict is `effect`).
+    pub fn correction(&self) -> Option<Theta<'_>> {
+        match (&self.chosen, self.verdict) {
+            (Some(f), Verdict::Effect) => Some(Theta {
+                effects: &f.effects,
+                values: &f.estimate,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// The fit and held-out statistics, the groups, and the model every candidate extends.
+struct Context<'a> {
+    fit: &'a Normals,
+    held: &'a Normals,
+    groups: &'a [Group],
+}
+
+impl Context<'_> {
+    fn effects(&self, groups: &[usize]) -> Vec<Effect> {
+        groups.iter().map(|&g| self.groups[g].members[0]).collect()
+    }
+
+    /// Fits `groups` on the fit references and judges them on the held-out ones against
+    /// `base` (the explanation they extend: `None` = no effect). `None` when inseparable.
+    fn candidate(&self, groups: Vec<usize>, base: Option<&Fit>, p_value: f64) -> Option<Candidate> {
+        let fit = self.fit.fit(&self.effects(&groups)).ok()?;
+        let chi2_held_out = self.held.chi2_at(&fit.effects, &fit.estimate);
+        // The change of the correction relative to the base, in the fit's effect order.
+        let delta: Vec<f64> = fit
+            .effects
+            .iter()
+            .zip(&fit.estimate)
+            .map(|(e, x)| {
+                let before =
+                    base.and_then(|b| b.effects.iter().position(|f| f == e).map(|i| b.estimate[i]));
+                x - before.unwrap_or(0.0)
+            })
+            .collect();
+        let chi2_base = base.map_or(self.held.chi2_null(), |b| {
+            self.held.chi2_at(&b.effects, &b.estimate)
+        });
+        let held_out_reduction = chi2_base - chi2_held_out;
+        // reduction = 2 d'C^-1 r' - d'C^-1 d, d = S delta: the score z = d'C^-1 r' / |d|.
+        let quad = self.held.quadratic(&fit.effects, &delta);
+        let z = (held_out_reduction + quad) / (2.0 * quad.sqrt());
+        let held_out_p_value = if quad > 0.0 { normal_sf(z) } else { 1.0 };
+        Some(Candidate {
+            groups,
+            fit,
+            p_value,
+            p_holm: 1.0,
+            significant: false,
+            chi2_held_out,
+            held_out_reduction,
+            held_out_p_value,
+        })
+    }
+
+    /// Likelihood-ratio p-value of `larger` against `smaller` on the fit references.
+    fn lr(&self, larger: &Fit, smaller_chi2: f64) -> f64 {
+        let dof = larger.effects.len();
+        chi2_sf(smaller_chi2 - larger.chi2, dof)
+    }
+}
+
+/// Marks the Holm-significant candidates; returns the index of the best supported one
+/// (largest held-out reduction).
+fn judge(candidates: &mut [Candidate], alpha: f64) -> Option<usize> {
+    let p: Vec<f64> = candidates.iter().map(|c| c.p_value).collect();
+    for (c, q) in candidates.iter_mut().zip(holm_adjusted(&p)) {
+        c.p_holm = q;
+        c.significant = q <= alpha;
+    }
+    (0..candidates.len())
+        .filter(|&i| candidates[i].significant && candidates[i].supported(alpha))
+        .max_by(|&a, &b| {
+            candidates[a]
+                .held_out_reduction
+                .total_cmp(&candidates[b].held_out_reduction)
+        })
+}
+
+/// Each group alone and every pair (the pair's p-value requires both members).
+fn first_step(cx: &Context) -> Vec<Candidate> {
+    let null_chi2 = cx.fit.chi2_null();
+    let singles: Vec<Option<Candidate>> = (0..cx.groups.len())
+        .map(|g| {
+            let c = cx.candidate(vec![g], None, 1.0)?;
+            let p = chi2_sf(null_chi2 - c.fit.chi2, 1);
+            Some(Candidate { p_value: p, ..c })
+        })
+        .collect();
+    let mut out: Vec<Candidate> = Vec::new();
+    for a in 0..cx.groups.len() {
+        for b in a + 1..cx.groups.len() {
+            let (Some(sa), Some(sb)) = (&singles[a], &singles[b]) else {
+                continue;
+            };
+            let Some(c) = cx.candidate(vec![a, b], None, 1.0) else {
+                continue;
+            };
+            let p = [
+                cx.lr(&c.fit, null_chi2),
+                chi2_sf(sa.fit.chi2 - c.fit.chi2, 1),
+                chi2_sf(sb.fit.chi2 - c.fit.chi2, 1),
+            ]
+            .into_iter()
+            .fold(0.0, f64::max);
+            out.push(Candidate { p_value: p, ..c });
+        }
+    }
+    singles.into_iter().flatten().chain(out).collect()
+}
+
+/// Greedy forward additions to `current`, one group at a time.
+fn extend(
+    cx: &Context,
+    mut current: Candidate,
+    alpha: f64,
+    tried: &mut Vec<Candidate>,
+) -> Candidate {
+    while current.groups.len() < MAX_GROUPS {
+        let mut step: Vec<Candidate> = (0..cx.groups.len())
+            .filter(|g| !current.groups.contains(g))
+            .filter_map(|g| {
+                let mut groups = current.groups.clone();
+                groups.push(g);
+                let c = cx.candidate(groups, Some(&current.fit), 1.0)?;
+                let p = chi2_sf(current.fit.chi2 - c.fit.chi2, 1);
+                Some(Candidate { p_value: p, ..c })
+            })
+            .collect();
+        let best = judge(&mut step, alpha);
+        let next = best.map(|i| step[i].clone());
+        tried.append(&mut step);
+        match next {
+            Some(n) => current = n,
+            None => break,
+        }
+    }
+    current
+}
+
+/// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
+/// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default).
+pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selection> {
+    let fit_n = Normals::of(set, &split.fit)?;
+    let held = Normals::of(set, &split.held_out)?;
+    let observability = observability_of(&fit_n, &Effect::ALL);
+    let null_chi2 = held.chi2_null();
+    let null = NullTest::new(null_chi2, held.n, alpha);
+    let cx = Context {
+        fit: &fit_n,
+        held: &held,
+        groups: &observability.groups,
+    };
+    let mut candidates = first_step(&cx);
+    let best = judge(&mut candidates, alpha).map(|i| candidates[i].clone());
+    let chosen = best.map(|b| extend(&cx, b, alpha, &mut candidates));
+    candidates.sort_by(|a, b| b.held_out_reduction.total_cmp(&a.held_out_reduction));
+
+    let excess = null_chi2 - held.n as f64;
+    let closure = match &chosen {
+        Some(c) if excess > 0.0 => Some((null_chi2 - c.chi2_held_out) / excess),
+        _ => None,
+    };
+    let remaining = chosen
+        .as_ref()
+        .map(|c| NullTest::new(c.chi2_held_out, held.n, alpha));
+    let closes =
+        closure.is_some_and(|c| c >= CLOSES_SHARE) || remaining.is_some_and(|r| !r.rejected);
+    let verdict = match (&chosen, null.rejected) {
+        (Some(_), false) => Verdict::Effect,
+        (Some(_), true) if closes => Verdict::Effect,
+        (_, true) => Verdict::Unexplained,
+        (None, false) => Verdict::None,
+    };
+    let (effects, estimate, sigma) = match (&chosen, verdict) {
+        (Some(c), Verdict::Effect) => named(&cx, c)?,
+        _ => (Vec::new(), Vec::new(), Vec::new()),
+    };
+    Ok(Selection {
+        verdict,
+        effects,
+        estimate,
+        sigma,
+        chosen: chosen.map(|c| c.fit),
+        closure,
+        null,
+        remaining,
+        observability,
+        candidates,
+        alpha,
+    })
+}
+
+/// Every member of the chosen groups with its estimate and sigma (a non-preferred member
+/// fitted in place of the preferred one, or alone when that is singular).
+fn named(cx: &Context, chosen: &Candidate) -> Result<(Vec<Effect>, Vec<f64>, Vec<f64>)> {
+    let (mut effects, mut estimate, mut sigma) = (Vec::new(), Vec::new(), Vec::new());
+    for (slot, &g) in chosen.groups.iter().enumerate() {
+        for (m, &member) in cx.groups[g].members.iter().enumerate() {
+            // A member that cannot stand in for the preferred one beside the other groups
+            // (singular together) is estimated alone.
+            let (fit, at) = if m == 0 {
+                (chosen.fit.clone(), slot)
+            } else {
+                let mut with = chosen.fit.effects.clone();
+                with[slot] = member;
+                match cx.fit.fit(&with) {
+                    Ok(f) => (f, slot),
+                    Err(_) => (cx.fit.fit(&[member])?, 0),
+                }
+            };
+            effects.push(member);
+            estimate.push(fit.estimate[at]);
+            sigma.push(fit.sigma[at]);
+        }
+    }
+    Ok((effects, estimate, sigma))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,247 @@
+//! The selection's statistical tests on observations drawn from the model itself.
+use super::*;
+use crate::app::diagnose::fit::{fit, split};
+use crate::app::diagnose::locate::{locate, model_free, DEFAULT_BINS};
+use crate::app::diagnose::metrics::gap;
+use crate::app::diagnose::model::synthetic::{draw, fill_residuals, Scenario};
+use crate::app::diagnose::model::{signature_index, Covariate, N_EFFECTS};
+use crate::app::diagnose::observability::observability;
+
+/// The size of `effect` that moves points by `rms_m` on `set` (root mean square).
+fn size_for(set: &ObservationSet, effect: Effect, rms_m: f64) -> f64 {
+    let c = signature_index(effect);
+    let ms = set
+        .observations
+        .iter()
+        .map(|o| o.signature[c].powi(2))
+        .sum::<f64>()
+        / set.observations.len() as f64;
+    rms_m / ms.sqrt()
+}
+
+fn mean_std(x: &[f64]) -> (f64, f64) {
+    let n = x.len() as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var.sqrt())
+}
+
+#[test]
+fn no_effect_gives_none_and_chi2_per_dof_near_one() {
+    let seeds = 100;
+    let (mut none, mut chi2) = (0, Vec::new());
+    for seed in 0..seeds {
+        let set = draw(&Scenario::default(), seed);
+        let sp = split(&set, seed).unwrap();
+        let sel = select(&set, &sp, DEFAULT_ALPHA).unwrap();
+        none += usize::from(sel.verdict == Verdict::None);
+        chi2.push(gap(&set, &sp.held_out, None).unwrap().chi2_per_dof);
+    }
+    let (mean, _) = mean_std(&chi2);
+    println!("theta = 0: verdict none in {none}/{seeds}; mean held-out chi2/dof {mean:.4}");
+    assert!(none * 100 >= 95 * seeds as usize, "none in {none}/{seeds}");
+    // 1440 held-out returns: sd of chi2/dof sqrt(2/1440) = 0.037 per seed, 0.0037 over
+    // 100 seeds: 4 sd.
+    assert!((mean - 1.0).abs() < 0.015, "{mean}");
+}
+
+#[test]
+fn one_injected_effect_is_named_first_with_honest_sigma() {
+    let seeds = 90;
+    let (mut first, mut normalised) = (0, Vec::new());
+    for seed in 0..seeds {
+        let effect = Effect::ALL[seed as usize % N_EFFECTS];
+        let mut set = draw(&Scenario::default(), seed);
+        let truth = size_for(&set, effect, 0.02);
+        let s = Scenario {
+            truth: vec![(effect, truth)],
+            ..Default::default()
+        };
+        fill_residuals(&mut set, &s, seed + 1000);
+        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA).unwrap();
+        let first_group = sel
+            .observability
+            .groups
+            .iter()
+            .find(|g| sel.effects.first() == Some(&g.members[0]));
+        if sel.verdict == Verdict::Effect
+            && first_group.is_some_and(|g| g.members.contains(&effect))
+        {
+            first += 1;
+        }
+        if let Some(i) = sel.effects.iter().position(|&e| e == effect) {
+            normalised.push((sel.estimate[i] - truth) / sel.sigma[i]);
+        }
+    }
+    let (mean, std) = mean_std(&normalised);
+    println!("one effect: named first {first}/{seeds}; normalised errors ({}) mean {mean:.3} std {std:.3}", normalised.len());
+    assert!(
+        first * 100 >= 95 * seeds as usize,
+        "named first in {first}/{seeds}"
+    );
+    // 90 draws: the sample sd has sd 1/sqrt(180) = 0.075; the mean has sd 0.105.
+    assert!((0.8..=1.25).contains(&std), "std {std}");
+    assert!(mean.abs() < 0.32, "mean {mean}");
+}
+
+#[test]
+fn an_effect_without_signature_is_unobservable_and_never_named() {
+    let mut set = draw(
+        &Scenario {
+            range_cyclic_m: 0.02,
+            ..Default::default()
+        },
+        8,
+    );
+    for o in &mut set.observations {
+        o.signature = [0.0; N_EFFECTS];
+    }
+    let sel = select(&set, &split(&set, 8).unwrap(), DEFAULT_ALPHA).unwrap();
+    assert_eq!(sel.observability.unobservable, Effect::ALL.to_vec());
+    assert!(sel.observability.groups.is_empty() && sel.candidates.is_empty());
+    assert_eq!(sel.verdict, Verdict::Unexplained);
+    assert!(sel.effects.is_empty());
+}
+
+/// Normalised errors of `effect` (cycling over the catalogue) over `seeds` draws with
+/// navigation errors that are Gauss-Markov processes in time (within and across visits).
+fn correlated_errors(seeds: u64) -> Vec<f64> {
+    let tau = Some([60.0, 30.0]);
+    let mut out = Vec::new();
+    for seed in 0..seeds {
+        let effect = Effect::ALL[seed as usize % N_EFFECTS];
+        let base = Scenario {
+            nav_tau_s: tau,
+            ..Default::default()
+        };
+        let mut set = draw(&base, seed);
+        let truth = size_for(&set, effect, 0.02);
+        let s = Scenario {
+            truth: vec![(effect, truth)],
+            ..base
+        };
+        fill_residuals(&mut set, &s, seed + 3000);
+        let f = fit(&set, &split(&set, seed).unwrap().fit, &[effect]).unwrap();
+        out.push((f.estimate[0] - truth) / f.sigma[0]);
+    }
+    out
+}
+
+#[test]
+fn correlated_navigation_errors_keep_sigmas_honest() {
+    let (mean, std) = mean_std(&correlated_errors(120));
+    println!("nav errors Gauss-Markov in time (tau 60/30 s): normalised errors mean {mean:.3} std {std:.3}");
+    // 120 draws: the sample sd has sd 1/sqrt(240) = 0.065; the mean 0.09 (3 sd: 0.28).
+    assert!((0.8..=1.25).contains(&std), "std {std}");
+    assert!(mean.abs() < 0.28, "mean {mean}");
+}
+
+#[test]
+fn gls_sigma_is_the_cramer_rao_bound() {
+    let base = draw(&Scenario::default(), 77);
+    let effect = Effect::BoresightX;
+    let truth = size_for(&base, effect, 0.02);
+    let s = Scenario {
+        truth: vec![(effect, truth)],
+        ..Default::default()
+    };
+    let refs = base.observed_references();
+    let (mut estimates, mut sigma) = (Vec::new(), 0.0);
+    for seed in 0..200 {
+        let mut set = base.clone();
+        fill_residuals(&mut set, &s, seed);
+        let f = fit(&set, &refs, &[effect]).unwrap();
+        estimates.push(f.estimate[0]);
+        sigma = f.sigma[0];
+    }
+    let (mean, std) = mean_std(&estimates);
+    println!(
+        "CRB: empirical std / GLS sigma = {:.3} (200 draws), bias/sigma {:.3}",
+        std / sigma,
+        (mean - truth) / sigma
+    );
+    // 200 draws: the sample sd has relative sd 1/sqrt(400) = 0.05: 3 sd.
+    assert!((std / sigma - 1.0).abs() < 0.15, "{} vs {sigma}", std);
+    assert!(((mean - truth) / sigma).abs() < 3.0 / 200f64.sqrt());
+}
+
+#[test]
+fn correlated_effects_form_one_group_named_together() {
+    let pair = (Effect::BoresightX, Effect::EncoderOffset);
+    let plain = draw(&Scenario::default(), 5);
+    let obs = observability(&plain, &plain.observed_references(), &Effect::ALL).unwrap();
+    assert!(
+        obs.groups.iter().all(|g| g.members.len() == 1),
+        "{:?}",
+        obs.groups
+    );
+    let mut named = 0;
+    for seed in 0..10 {
+        let mut set = draw(
+            &Scenario {
+                twin: Some(pair),
+                ..Default::default()
+            },
+            seed,
+        );
+        let refs = set.observed_references();
+        let obs = observability(&set, &refs, &Effect::ALL).unwrap();
+        let g = obs
+            .groups
+            .iter()
+            .find(|g| g.members.contains(&pair.0))
+            .unwrap();
+        assert_eq!(g.members, vec![pair.0, pair.1], "preferred first");
+        assert!(g.max_abs_correlation > 0.9 && !g.separating_data.is_empty());
+        assert!(obs.vif[obs.effects.iter().position(|&e| e == pair.1).unwrap()] > 5.0);
+        let truth = size_for(&set, pair.1, 0.02);
+        fill_residuals(
+            &mut set,
+            &Scenario {
+                twin: Some(pair),
+                truth: vec![(pair.1, truth)],
+                ..Default::default()
+            },
+            seed + 50,
+        );
+        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA).unwrap();
+        if sel.verdict == Verdict::Effect && sel.effects[..2] == [pair.0, pair.1] {
+            named += 1;
+            assert_eq!(sel.estimate.len(), sel.effects.len());
+        }
+    }
+    assert!(named >= 9, "group named in {named}/10");
+}
+
+#[test]
+fn out_of_model_signal_is_unexplained_located_and_closed_model_free() {
+    let seeds = 20usize;
+    let (mut unexplained, mut located, mut closed) = (0, 0, 0);
+    let mut closures = Vec::new();
+    for seed in 0..seeds {
+        let set = draw(
+            &Scenario {
+                range_cyclic_m: 0.02,
+                ..Default::default()
+            },
+            seed as u64,
+        );
+        let sp = split(&set, seed as u64).unwrap();
+        let sel = select(&set, &sp, DEFAULT_ALPHA).unwrap();
+        unexplained += usize::from(sel.verdict == Verdict::Unexplained && sel.effects.is_empty());
+        let tests = locate(&set, &sp.fit, None, DEFAULT_BINS).unwrap();
+        located += usize::from(tests[0].covariate == Covariate::RangeM);
+        let c = model_free(&set, &sp, tests[0].covariate, None, DEFAULT_BINS).unwrap();
+        let closure = c.closure.unwrap_or(0.0);
+        closures.push(closure);
+        closed += usize::from(closure >= 0.5);
+    }
+    let (mean, _) = mean_std(&closures);
+    println!("out of model: unexplained {unexplained}/{seeds}, located in range_m {located}/{seeds}, closed >= 50% {closed}/{seeds} (mean closure {mean:.2})");
+    assert!(
+        unexplained * 100 >= 95 * seeds,
+        "unexplained {unexplained}/{seeds}"
+    );
+    assert!(located * 100 >= 95 * seeds, "located {located}/{seeds}");
+    assert!(closed * 100 >= 95 * seeds, "closed {closed}/{seeds}");
+}
