@@ -20,6 +20,7 @@ use super::sphere::{ray_sphere_range, SphereRadius};
 use crate::geo::rotations::{r_b_to_n, r_zyx, roll_pitch_heading, wrap_two_pi};
 use crate::io::atomic::{write_atomic, write_json};
 use crate::io::config_file;
+use crate::io::publish::publish_folder;
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Unit, UnitQuaternion, Vector3};
 use rand::SeedableRng;
@@ -411,7 +412,9 @@ pub fn run_table_simulation(config_path: &Path, out_dir: &Path) -> Result<TableS
         &crate::io::paths::in_out_dir(out_dir, &OUTPUT_FILES),
     )?;
     let data = simulate_table(&sc)?;
-    write_table_run(&sc, &data, out_dir)?;
+    publish_folder(out_dir, "table", "truth.json", &OUTPUT_FILES, |dir| {
+        write_table_run(&sc, &data, dir)
+    })?;
     Ok(TableSimulationReport {
         n_returns: data.returns.len(),
         n_passes: data.passes.len(),

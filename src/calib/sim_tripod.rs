@@ -19,6 +19,7 @@ use super::ellipse::{beam, CutShape};
 use crate::geo::rotations::{r_b_to_n, r_zyx, rot_x, rot_y, rot_z, zyx_angles};
 use crate::io::atomic::{write_atomic, write_json};
 use crate::io::config_file;
+use crate::io::publish::publish_folder;
 use crate::plot::Plot;
 use crate::{Error, Result};
 use nalgebra::{Matrix2, Matrix3, Vector2, Vector3};
@@ -514,11 +515,13 @@ pub fn run_tripod_simulation(
     )?;
     let mut rng = ChaCha8Rng::seed_from_u64(sc.seed);
     let sites = simulate_sites(&sc, &mut rng)?;
-    write_tripod_run(&sc, &sites, out_dir)?;
-    if sc.monte_carlo_trials == 0 {
-        return Ok(None);
-    }
-    let mc = run_monte_carlo(&sc, sc.monte_carlo_trials)?;
-    write_monte_carlo_outputs(out_dir, &mc)?;
-    Ok(Some(mc))
+    publish_folder(out_dir, "tripod", "truth.json", &OUTPUT_FILES, |dir| {
+        write_tripod_run(&sc, &sites, dir)?;
+        if sc.monte_carlo_trials == 0 {
+            return Ok(None);
+        }
+        let mc = run_monte_carlo(&sc, sc.monte_carlo_trials)?;
+        write_monte_carlo_outputs(dir, &mc)?;
+        Ok(Some(mc))
+    })
 }

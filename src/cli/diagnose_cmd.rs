@@ -40,26 +40,14 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
         );
     }
     let loaded = config::load(&a.pipeline, &a.set)?;
-    let section = loaded.config.diagnose.clone().unwrap_or_default();
-    let Some(patches) = a.patches.clone().or(section.patches.map(PathBuf::from)) else {
+    let Some(req) = Request::of(&loaded, a.patches.clone(), a.out.clone()) else {
         bail!(
             "{}: no reference patches: give --patches FILE or diagnose.patches",
             a.pipeline.display()
         );
     };
-    let out_dir = a
-        .out
-        .clone()
-        .or(section.out.map(PathBuf::from))
-        .unwrap_or_else(|| PathBuf::from("diagnosis"));
     let started = std::time::Instant::now();
-    let d = diagnose::run(
-        &loaded,
-        &Request {
-            patches,
-            out_dir: out_dir.clone(),
-        },
-    )?;
+    let d = diagnose::run(&loaded, &req)?;
     if !quiet {
         let (b, f) = (&d.gap.before, &d.gap.after);
         println!("verdict   {}", d.headline());
@@ -78,7 +66,7 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
         }
         println!(
             "report    {} ({:.1} s)",
-            out_dir.join(diagnose::report::SUMMARY_MD).display(),
+            req.out_dir.join(diagnose::report::SUMMARY_MD).display(),
             started.elapsed().as_secs_f64()
         );
     }

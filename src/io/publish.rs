@@ -137,6 +137,29 @@ pub fn conclude<T>(
     Ok(value)
 }
 
+/// Runs a command's `write` with the staging folder of `out_dir` and publishes what it wrote
+/// there as one set, `last` (a file name) after all others. Files of `names` (every name the
+/// command may write) that a previous run left and this one did not write are removed. On an
+/// error nothing under a final name changes and the error names `out_dir`'s files.
+pub fn publish_folder<T>(
+    out_dir: &Path,
+    label: &str,
+    last: &str,
+    names: &[&str],
+    write: impl FnOnce(&Path) -> Result<T>,
+) -> Result<T> {
+    let mut set = OutputSet::new(label);
+    let last = out_dir.join(last);
+    let staged = set.stage(&last)?;
+    let value = write(parent_dir(&staged));
+    let previous: Vec<PathBuf> = names
+        .iter()
+        .map(|n| out_dir.join(n))
+        .filter(|f| f.is_file())
+        .collect();
+    conclude(set, value, &last, &previous)
+}
+
 /// An exclusive lock on an output stem, held while a run writes and publishes it: the file
 /// `.<stem>.kinescan-lock` beside the output (empty, kept; the lock is the OS's, released when
 /// the process ends however it ends).

@@ -24,6 +24,7 @@ pub use outputs::{read_truth_points, TRUTH_HEADER_BYTES, TRUTH_MAGIC, TRUTH_RECO
 pub use scenario::Scenario;
 
 use crate::io::profiles::{ProfileColumns, ProfileWriter};
+use crate::io::publish::publish_folder;
 use crate::trajectory::NavSample;
 use crate::{Error, Result};
 use dynamics::{Frame, TruthGen};
@@ -124,19 +125,31 @@ pub fn simulate_scenario(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Re
             .num_threads(n)
             .build()
             .map_err(|e| Error::Invalid(format!("thread pool: {e}")))?
-            .install(|| run(sc, out_dir, opts)),
-        None => run(sc, out_dir, opts),
+            .install(|| publish(sc, out_dir, opts)),
+        None => publish(sc, out_dir, opts),
     }
 }
 
-fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
+/// Simulates into the staging folder of `out_dir` and publishes the files as one set,
+/// `truth.json` last.
+fn publish(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
+    publish_folder(
+        out_dir,
+        "simulation",
+        files::TRUTH_JSON,
+        &files::ALL,
+        |dir| run(sc, out_dir, dir, opts),
+    )
+}
+
+/// Simulates `sc` for `out_dir` (named in the summary), writing into `dir`.
+fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
     let started = Instant::now();
-    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let o = &sc.origin;
     let frame = Frame::new(o.lat_deg.to_radians(), o.lon_deg.to_radians(), o.h_m);
     let route = Route::new(&sc.route, sc.vehicle.lane_offset_m, &sc.name)?;
     let world = world::build(&sc.scene, sc.seed);
-    let p = |name: &str| out_dir.join(name);
+    let p = |name: &str| dir.join(name);
     let mut written = vec![files::SBET, files::SMRMSG];
     let truth_sbet = sc.output.truth_sbet.then(|| p(files::TRUTH_SBET));
     let nav_counts = nav::write_nav(
@@ -152,7 +165,7 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
         written.push(files::TRUTH_SBET);
     }
     let model = ScannerModel::new(sc);
-    let scan = scan(sc, &model, &world, frame, route.clone(), out_dir, opts)?;
+    let scan = scan(sc, &model, &world, frame, route.clone(), dir, opts)?;
     written.push(files::PROFILES);
     if opts.profiles_csv || sc.output.profiles_csv {
         crate::io::profiles_csv::export_csv(&p(files::PROFILES), &p(files::PROFILES_CSV))?;
@@ -161,7 +174,7 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
     if sc.output.truth_points {
         written.push(files::TRUTH_POINTS);
     }
-    outputs::write_references(sc, &world, &route, frame, &scan.surface_hits, out_dir)?;
+    outputs::write_references(sc, &world, &route, frame, &scan.surface_hits, dir)?;
     written.extend([files::CONTROL_POINTS, files::PATCHES]);
     let summary = SimSummary {
         profiles: scan.profiles,
@@ -176,7 +189,7 @@ fn run(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
             .chain([files::TRUTH_JSON.into()])
             .collect(),
     };
-    outputs::write_truth_json(sc, &world, &model, &route, &nav_counts, &summary, out_dir)?;
+    outputs::write_truth_json(sc, &world, &model, &route, &nav_counts, &summary, dir)?;
     Ok(summary)
 }
 

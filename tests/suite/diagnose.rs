@@ -262,5 +262,23 @@ fn a_diagnosis_output_that_is_an_input_is_refused() {
         e.contains("--out before_after.png") && e.contains("--patches"),
         "{e}"
     );
+    // `validate` reports the same collision for the pipeline's [diagnose] table.
+    let o = crate::common::kinescan(
+        d,
+        &[
+            "validate",
+            "pipeline.toml",
+            "--set",
+            "diagnose.patches=diag/before_after.png",
+            "--set",
+            "diagnose.out=diag",
+        ],
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "validate passed: {e}");
+    assert!(
+        e.contains("--out before_after.png") && e.contains("diagnose.patches"),
+        "{e}"
+    );
     assert_eq!(crate::common::tree(d), before, "an input or output changed");
 }

@@ -36,6 +36,7 @@ mod realdata_leeward;
 mod safety_collisions;
 mod safety_messages;
 mod safety_publish;
+mod safety_sets;
 mod sim_effects;
 mod sim_references;
 mod sim_stats;

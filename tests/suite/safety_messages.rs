@@ -3,21 +3,13 @@
 
 use crate::common;
 
+use crate::common::kinescan;
 use kinescan::io::info::describe;
 use kinescan::io::patches::read_patches;
 use kinescan::io::points::read_control_points;
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::profiles_csv::import_csv;
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn kinescan(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_kinescan"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
 
 fn failure(dir: &Path, args: &[&str]) -> String {
     let o = kinescan(dir, args);

@@ -3,17 +3,10 @@
 
 use crate::common;
 
+use crate::common::kinescan;
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use std::path::Path;
 use std::process::{Command, Output};
-
-fn kinescan(dir: &Path, args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_kinescan"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .unwrap()
-}
 
 fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()

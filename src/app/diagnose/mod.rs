@@ -20,9 +20,8 @@ pub mod report;
 pub mod reprocess;
 pub mod select;
 
-use crate::io::atomic::parent_dir;
 use crate::io::patches::{read_patches, PlanarPatch};
-use crate::io::publish::{conclude, OutputSet};
+use crate::io::publish::publish_folder;
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
 use std::path::{Path, PathBuf};
@@ -34,6 +33,25 @@ pub struct Request {
     pub patches: PathBuf,
     /// Output folder (created if missing).
     pub out_dir: PathBuf,
+}
+
+impl Request {
+    /// The diagnosis of pipeline `p`: `patches` and `out_dir` when given (the command line),
+    /// else its `[diagnose]` table's `patches` and `out`; the folder defaults to `diagnosis`.
+    /// None without patches.
+    pub fn of(
+        p: &LoadedPipeline,
+        patches: Option<PathBuf>,
+        out_dir: Option<PathBuf>,
+    ) -> Option<Self> {
+        let section = p.config.diagnose.clone().unwrap_or_default();
+        Some(Request {
+            patches: patches.or(section.patches.map(PathBuf::from))?,
+            out_dir: out_dir
+                .or(section.out.map(PathBuf::from))
+                .unwrap_or_else(|| PathBuf::from("diagnosis")),
+        })
+    }
 }
 
 /// What the statistics conclude on one observation set (the seam between the statistics and
@@ -74,16 +92,15 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
     let observed = observe::observe(p, &patches, &req.patches, &cfg)?;
     let set = &observed.set;
     let stats = statistics(set, &cfg)?;
-    let mut outputs = OutputSet::new("diagnosis");
-    let json = req.out_dir.join(report::DIAGNOSIS_JSON);
-    let staged = outputs.stage(&json)?;
-    let written = write_outputs(p, req, &patches, observed, stats, parent_dir(&staged));
-    let previous: Vec<PathBuf> = output_names()
-        .iter()
-        .map(|n| req.out_dir.join(n))
-        .filter(|f| f.is_file())
-        .collect();
-    conclude(outputs, written, &json, &previous)
+    let names = output_names();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    publish_folder(
+        &req.out_dir,
+        "diagnosis",
+        report::DIAGNOSIS_JSON,
+        &names,
+        |dir| write_outputs(p, req, &patches, observed, stats, dir),
+    )
 }
 
 /// Everything after the statistics, written into the staging folder `dir` (published by
@@ -201,8 +218,9 @@ fn held_out_values(set: &model::ObservationSet, refs: &[usize], values: &[f64]) 
         .collect()
 }
 
-/// Refuses outputs that would overwrite an input (or each other) before any work.
-fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
+/// Refuses outputs that would overwrite an input (or each other) before any work (`diagnose`
+/// and `validate`).
+pub fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
     let mut inputs = crate::pipeline::files::inputs(p);
     inputs.push(("--patches".into(), req.patches.clone()));
     let names = output_names();

@@ -21,9 +21,10 @@ pub use config::*;
 pub use points::*;
 
 use crate::io::atomic::{write_atomic, write_json};
+use crate::io::publish::publish_folder;
 use crate::uncertainty::model::{Group, Input, Jacobian, PointGeometry, N_INPUTS};
 use crate::uncertainty::sobol::{FactorIndices, SaltelliDesign, SobolIndices, N_OUT};
-use crate::{Error, Result};
+use crate::Result;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -106,15 +107,7 @@ pub fn run_sensitivity(config_path: &Path, out_dir: &Path) -> Result<Sensitivity
     if let Some(sc) = &config.scenario {
         inputs.push(("scenario.file".into(), sc.file.to_path_buf()));
     }
-    let mut names = vec![
-        "sensitivity_points.csv".to_string(),
-        "share_vs_range.csv".into(),
-        "sensitivity.json".into(),
-    ];
-    for o in OUTPUTS {
-        names.push(format!("share_vs_range_{o}.png"));
-        names.push(format!("share_vs_range_inputs_{o}.png"));
-    }
+    let names = output_names();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(out_dir, &names))?;
     run_sensitivity_config(config, out_dir)
@@ -126,19 +119,40 @@ pub fn run_sensitivity_config(
     config: SensitivityConfig,
     out_dir: &Path,
 ) -> Result<SensitivityReport> {
-    std::fs::create_dir_all(out_dir).map_err(|e| Error::io(out_dir, e))?;
     let mut report = study(config)?;
-    let points_csv = out_dir.join("sensitivity_points.csv");
-    write_atomic(&points_csv, tables::points_table(&report).as_bytes())?;
-    let plot_csv = out_dir.join("share_vs_range.csv");
-    write_atomic(&plot_csv, tables::share_vs_range_table(&report).as_bytes())?;
-    report.outputs = vec![points_csv, plot_csv];
-    let plots = tables::plot_share_against_range(&report, out_dir)?;
-    report.outputs.extend(plots);
-    let json = out_dir.join("sensitivity.json");
-    report.outputs.push(json.clone());
-    write_json(&json, &report)?;
+    let names = output_names();
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    publish_folder(out_dir, "sensitivity", JSON, &names, |dir| {
+        let final_path = |p: &Path| out_dir.join(p.file_name().unwrap_or_default());
+        let points_csv = dir.join(POINTS_CSV);
+        write_atomic(&points_csv, tables::points_table(&report).as_bytes())?;
+        let plot_csv = dir.join(SHARE_CSV);
+        write_atomic(&plot_csv, tables::share_vs_range_table(&report).as_bytes())?;
+        let plots = tables::plot_share_against_range(&report, dir)?;
+        report.outputs = [points_csv, plot_csv]
+            .iter()
+            .chain(&plots)
+            .map(|p| final_path(p))
+            .chain([out_dir.join(JSON)])
+            .collect();
+        write_json(&dir.join(JSON), &report)
+    })?;
     Ok(report)
+}
+
+const POINTS_CSV: &str = "sensitivity_points.csv";
+const SHARE_CSV: &str = "share_vs_range.csv";
+/// The report, published after the other files.
+const JSON: &str = "sensitivity.json";
+
+/// Every file a study may write into its output folder.
+fn output_names() -> Vec<String> {
+    let mut names = vec![POINTS_CSV.to_string(), SHARE_CSV.into(), JSON.into()];
+    for o in OUTPUTS {
+        names.push(format!("share_vs_range_{o}.png"));
+        names.push(format!("share_vs_range_inputs_{o}.png"));
+    }
+    names
 }
 
 /// The factors studied: each input alone, then each group.

@@ -9,8 +9,13 @@ use crate::calib::tripod::BoresightSetup;
 use crate::io::atomic::{write_atomic, write_json};
 use crate::io::config_file;
 use crate::io::paths::{check_collisions, in_out_dir};
+use crate::io::publish::publish_folder;
 use crate::{Error, Result};
 use std::path::Path;
+
+/// The files a boresight calibration writes into its output folder: the report
+/// (`boresight.json`, published last) and the per-site table.
+pub const OUTPUT_FILES: [&str; 2] = ["boresight.json", "boresight_sites.csv"];
 
 /// The sites of a config: from `centres`, or fitted from `scans` (exactly one must be given).
 fn config_sites(
@@ -77,13 +82,9 @@ pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<B
             inputs.push((key.into(), f.to_path_buf()));
         }
     }
-    check_collisions(
-        &inputs,
-        &in_out_dir(out_dir, &["boresight.json", "boresight_sites.csv"]),
-    )?;
+    check_collisions(&inputs, &in_out_dir(out_dir, &OUTPUT_FILES))?;
     let sites = config_sites(&cfg, config_path, &setup)?;
     let report = estimate_boresight(&sites, &setup)?;
-    write_json(&out_dir.join("boresight.json"), &report)?;
     let mut csv = String::from("site,apex_x_s_m,apex_y_s_m,apex_z_s_m,d1_m,d2_m,d3_m,res_leg1_deg,res_leg2_deg,res_leg3_deg\n");
     for s in &report.sites {
         let [x, y, z] = s.apex_s_m;
@@ -94,6 +95,15 @@ pub fn run_boresight_calibration(config_path: &Path, out_dir: &Path) -> Result<B
             s.site
         );
     }
-    write_atomic(&out_dir.join("boresight_sites.csv"), csv.as_bytes())?;
+    publish_folder(
+        out_dir,
+        "boresight",
+        OUTPUT_FILES[0],
+        &OUTPUT_FILES,
+        |dir| {
+            write_atomic(&dir.join(OUTPUT_FILES[1]), csv.as_bytes())?;
+            write_json(&dir.join(OUTPUT_FILES[0]), &report)
+        },
+    )?;
     Ok(report)
 }

@@ -7,6 +7,7 @@ use super::inputs::{read_attitude, read_passes, read_returns};
 use crate::io::atomic::{write_atomic, write_json};
 use crate::io::config_file;
 use crate::io::paths::{check_collisions, in_out_dir};
+use crate::io::publish::publish_folder;
 use crate::plot::Plot;
 use crate::Result;
 use std::path::Path;
@@ -46,16 +47,12 @@ pub fn run_latency_calibration(config_path: &Path, out_dir: &Path) -> Result<Lat
         attitude: read_attitude(&attitude)?,
     };
     let report = estimate_latency(&data, &setup)?;
-    write_json(&out_dir.join("latency.json"), &report)?;
-    write_atomic(
-        &out_dir.join("latency_by_speed.csv"),
-        speed_table_csv(&report).as_bytes(),
-    )?;
-    latency_plot(&report).save_png(out_dir.join("latency_by_speed.png"))?;
-    let [json, csv, png] = OUTPUT_FILES.map(|n| out_dir.join(n));
-    write_json(&json, &report)?;
-    write_atomic(&csv, speed_table_csv(&report).as_bytes())?;
-    latency_plot(&report).save_png(png)?;
+    publish_folder(out_dir, "latency", OUTPUT_FILES[0], &OUTPUT_FILES, |dir| {
+        let [json, csv, png] = OUTPUT_FILES.map(|n| dir.join(n));
+        write_atomic(&csv, speed_table_csv(&report).as_bytes())?;
+        latency_plot(&report).save_png(png)?;
+        write_json(&json, &report)
+    })?;
     Ok(report)
 }
 

@@ -291,3 +291,12 @@ pub fn tree(dir: &Path) -> Vec<(String, Vec<u8>)> {
     out.sort();
     out
 }
+
+/// Runs the built `kinescan` binary with `args` in folder `dir`.
+pub fn kinescan(dir: &Path, args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_kinescan"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
