@@ -6,8 +6,8 @@
 Every standard and extra dimension of every point must be equal (COPC reorders points into
 its octree: both files are then sorted by GPS time, which is unique per point, before the
 comparison). The extra dimensions must have the same names and types; the CRS WKT the same.
-With --copc the file must also open with laspy's CopcReader and hold every point in its
-hierarchy. Exit status 1 on any difference.
+With --copc the file must also open with laspy's CopcReader, hold every point in its
+hierarchy and answer a sub-box query with exactly the LAS points inside the box. Exit status 1 on any difference.
 """
 
 import argparse
@@ -15,6 +15,26 @@ import sys
 
 import laspy
 import numpy as np
+
+
+def copc_queries(las, path):
+    """CopcReader: the whole hierarchy holds every point; a query of a sub-box (the middle
+    30%-60% of the points in x and y, all heights) returns exactly the LAS points inside it."""
+    problems = []
+    x, y, z = np.asarray(las.x), np.asarray(las.y), np.asarray(las.z)
+    lo = np.array([np.quantile(x, 0.3), np.quantile(y, 0.3), z.min()])
+    hi = np.array([np.quantile(x, 0.6), np.quantile(y, 0.6), z.max()])
+    with laspy.CopcReader.open(path) as r:
+        n = len(r.query())
+        if n != las.header.point_count:
+            problems.append(f"CopcReader query gives {n} of {las.header.point_count} points")
+        box = r.query(bounds=laspy.copc.Bounds(lo, hi))
+    inside = (x >= lo[0]) & (x <= hi[0]) & (y >= lo[1]) & (y <= hi[1])
+    want = np.sort(np.asarray(las.gps_time)[inside])
+    got = np.sort(np.asarray(box.gps_time))
+    if inside.sum() == 0 or not np.array_equal(got, want):
+        problems.append(f"sub-box query: {len(got)} points, {inside.sum()} LAS points inside")
+    return problems
 
 
 def main():
@@ -41,10 +61,7 @@ def main():
             if not np.array_equal(va, vb):
                 problems.append(f"dimension {name} differs")
     if a.copc and not problems:
-        with laspy.CopcReader.open(a.compressed) as r:
-            n = sum(len(p) for p in [r.query()])
-            if n != las.header.point_count:
-                problems.append(f"CopcReader query gives {n} of {las.header.point_count} points")
+        problems += copc_queries(las, a.compressed)
     for p in problems:
         print(f"{a.compressed}: {p}")
     if problems:

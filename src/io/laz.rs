@@ -24,16 +24,16 @@ pub const CHUNK_POINTS: u32 = 50_000;
 /// Chunks handed to the parallel compressor at once (bounds memory to the mapped input).
 const CHUNKS_PER_BATCH: usize = 16;
 
-const OFFSET_TO_POINTS_AT: usize = 96;
-const NUMBER_OF_VLRS_AT: usize = 100;
-const POINT_FORMAT_AT: usize = 104;
+pub(super) const OFFSET_TO_POINTS_AT: usize = 96;
+pub(super) const NUMBER_OF_VLRS_AT: usize = 100;
+pub(super) const POINT_FORMAT_AT: usize = 104;
 const RECORD_LEN_AT: usize = 105;
 const POINT_COUNT_14_AT: usize = 247;
-const START_OF_EVLRS_AT: usize = 235;
+pub(super) const START_OF_EVLRS_AT: usize = 235;
 const HEADER_SIZE_AT: usize = 94;
-const LAS14_HEADER_SIZE: usize = 375;
-const VLR_HEADER_SIZE: usize = 54;
-const COMPRESSED_BIT: u8 = 0x80;
+pub(super) const LAS14_HEADER_SIZE: usize = 375;
+pub(super) const VLR_HEADER_SIZE: usize = 54;
+pub(super) const COMPRESSED_BIT: u8 = 0x80;
 
 /// Sizes of a compression.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -128,10 +128,25 @@ impl LasLayout {
         }
         Ok(layout)
     }
+
+    /// The bytes of record `i` of the whole file `b`.
+    pub fn record<'a>(&self, b: &'a [u8], i: usize) -> &'a [u8] {
+        let at = self.offset_to_points + i * self.record_len;
+        &b[at..at + self.record_len]
+    }
 }
 
 /// LASzip items for the point format with its extra bytes, fixed chunks of [`CHUNK_POINTS`].
 fn laszip_vlr(layout: &LasLayout) -> std::result::Result<LazVlr, String> {
+    Ok(LazVlrBuilder::new(laszip_items(layout)?)
+        .with_fixed_chunk_size(CHUNK_POINTS)
+        .build())
+}
+
+/// LASzip items for the point format (6 to 8) with its extra bytes.
+pub(super) fn laszip_items(
+    layout: &LasLayout,
+) -> std::result::Result<Vec<laz::laszip::LazItem>, String> {
     let core = match layout.point_format {
         6 => 30,
         7 => 36,
@@ -147,11 +162,8 @@ fn laszip_vlr(layout: &LasLayout) -> std::result::Result<LazVlr, String> {
         .checked_sub(core)
         .and_then(|e| u16::try_from(e).ok())
         .ok_or_else(|| format!("record length {} below the format's", layout.record_len))?;
-    let items = LazItemRecordBuilder::default_for_point_format_id(layout.point_format, extra)
-        .map_err(|e| e.to_string())?;
-    Ok(LazVlrBuilder::new(items)
-        .with_fixed_chunk_size(CHUNK_POINTS)
-        .build())
+    LazItemRecordBuilder::default_for_point_format_id(layout.point_format, extra)
+        .map_err(|e| e.to_string())
 }
 
 /// The LAS header with the compression bit, one more VLR and the moved point offset.
@@ -171,10 +183,25 @@ fn header_for_laz(b: &[u8], layout: &LasLayout, vlr_data_len: usize) -> Vec<u8> 
 
 /// The 54-byte VLR header of the `laszip encoded` record.
 fn laszip_vlr_header(data_len: usize) -> Vec<u8> {
+    vlr_header(
+        LazVlr::USER_ID,
+        LazVlr::RECORD_ID,
+        data_len as u16,
+        LazVlr::DESCRIPTION,
+    )
+}
+
+/// A 54-byte VLR header: reserved, user id, record id, length after the header, description.
+pub(super) fn vlr_header(
+    user_id: &str,
+    record_id: u16,
+    data_len: u16,
+    description: &str,
+) -> Vec<u8> {
     let mut v = vec![0u8; VLR_HEADER_SIZE];
-    v[2..2 + LazVlr::USER_ID.len()].copy_from_slice(LazVlr::USER_ID.as_bytes());
-    v[18..20].copy_from_slice(&LazVlr::RECORD_ID.to_le_bytes());
-    v[20..22].copy_from_slice(&(data_len as u16).to_le_bytes());
-    v[22..22 + LazVlr::DESCRIPTION.len()].copy_from_slice(LazVlr::DESCRIPTION.as_bytes());
+    v[2..2 + user_id.len()].copy_from_slice(user_id.as_bytes());
+    v[18..20].copy_from_slice(&record_id.to_le_bytes());
+    v[20..22].copy_from_slice(&data_len.to_le_bytes());
+    v[22..22 + description.len()].copy_from_slice(description.as_bytes());
     v
 }

@@ -2,6 +2,7 @@
 
 pub mod atomic;
 pub mod config_file;
+pub mod copc;
 pub mod counters;
 pub(crate) mod csv_text;
 pub(crate) mod digest;

@@ -242,7 +242,12 @@ pub fn into_format(format: OutputFormat, files: Vec<LasSummary>) -> Result<Vec<L
         .into_iter()
         .map(|mut s| {
             let laz = s.path.with_extension(format.extension());
-            let sizes = crate::io::laz::compress_las(&s.path, &laz)?;
+            let sizes = match format {
+                OutputFormat::Copc => {
+                    crate::io::copc::write_copc(&s.path, &laz, crate::io::copc::LEAF_POINTS)?
+                }
+                _ => crate::io::laz::compress_las(&s.path, &laz)?,
+            };
             std::fs::remove_file(&s.path).map_err(|e| Error::io(&s.path, e))?;
             s.path = laz;
             s.file_bytes = sizes.laz_bytes;

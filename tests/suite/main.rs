@@ -12,6 +12,7 @@ mod calib_sphere;
 mod calib_tripod_scans;
 mod cli;
 mod config_files;
+mod copc_output;
 mod day;
 mod diagnose;
 mod diagnose_acceptance;

@@ -76,14 +76,18 @@ pub enum OutputFormat {
     Las,
     /// LAZ 1.4: the same LAS compressed with LASzip in parallel chunks (`io::laz`).
     Laz,
+    /// COPC 1.0: the same points as a clustered octree of LAZ chunks (`io::copc`), in the file
+    /// `<stem>.copc.laz`.
+    Copc,
 }
 
 impl OutputFormat {
-    /// The file extension of the format (`las`, `laz`).
+    /// The file extension of the format (`las`, `laz`, `copc.laz`).
     pub fn extension(self) -> &'static str {
         match self {
             OutputFormat::Las => "las",
             OutputFormat::Laz => "laz",
+            OutputFormat::Copc => "copc.laz",
         }
     }
 }
@@ -105,7 +109,7 @@ pub struct OutputConfig {
     /// Output LAS path (the base name when split); with `format = "laz"` the files take the
     /// `.laz` extension instead.
     pub las: ConfigPath,
-    /// File format: `las` (default) or `laz`.
+    /// File format: `las` (default), `laz` or `copc`.
     #[serde(default)]
     pub format: OutputFormat,
     /// Run report path (JSON); default: `<las stem>.report.json` beside the LAS.
