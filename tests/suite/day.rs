@@ -279,6 +279,22 @@ fn tiles_do_not_depend_on_the_order_units_finished() {
         "tiles differ when the units finished in reverse order"
     );
     assert_counts_add_up(&d.join("b"));
+    if let Some(keep) = std::env::var_os("KINESCAN_DAY_OUT") {
+        // The day and its single-machine tiles for tests/dask/check_day.py (CI).
+        copy_files(d, Path::new(&keep));
+        copy_files(&d.join("a"), &Path::new(&keep).join("a"));
+    }
+}
+
+/// Copies the files (not the folders) of `from` into `to` (created).
+fn copy_files(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap() {
+        let e = e.unwrap();
+        if e.file_type().unwrap().is_file() {
+            std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+        }
+    }
 }
 
 #[test]
