@@ -205,13 +205,8 @@ fn round_small(x: f64) -> i64 {
     debug_assert!(x.abs() < ROUND_SMALL_MAX);
     let truncated = x as i64;
     let fraction = x - truncated as f64; // exact for |x| < 2^52
-    if fraction >= 0.5 {
-        truncated + 1
-    } else if fraction <= -0.5 {
-        truncated - 1
-    } else {
-        truncated
-    }
+                                         // Branch-free: the fraction of a coordinate is random, a branch on it mispredicts.
+    truncated + i64::from(fraction >= 0.5) - i64::from(fraction <= -0.5)
 }
 
 /// `round((v - offset) / scale)` as i32; `None` beyond i32 or not finite.
