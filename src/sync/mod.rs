@@ -105,9 +105,20 @@ pub fn estimate(
         .count()
         - 2;
     let paper = ClockEstimate::new(t_ref + fit.x[0], fit.x[1], &fit.cov, fit.chi2, dof);
-    let refined = match o.method {
-        Method::Paper => None,
-        Method::Refined => Some(refine(traj, sensor, targets, &mut sightings, &paper, o)?),
+    let (refined, fallback) = match o.method {
+        Method::Paper => (None, None),
+        Method::Refined => (
+            Some(refine(traj, sensor, targets, &mut sightings, &paper, o)?),
+            None,
+        ),
+        Method::Auto => match refine(traj, sensor, targets, &mut sightings, &paper, o) {
+            Ok(r) => (Some(r), None),
+            Err(Error::Numerical { problem, .. }) => {
+                sightings.iter_mut().for_each(|s| s.refined_returns.clear());
+                (None, Some(problem))
+            }
+            Err(e) => return Err(e),
+        },
     };
     let clock = refined.as_ref().map_or(paper, |r| r.clock);
     let hardware = file
@@ -123,7 +134,12 @@ pub fn estimate(
         })
         .flatten();
     Ok(SyncResult {
-        method: o.method,
+        method: if refined.is_some() {
+            Method::Refined
+        } else {
+            Method::Paper
+        },
+        fallback,
         clock,
         attitude_latency_s: refined.as_ref().and_then(|r| r.attitude_latency_s),
         sigma_attitude_latency_s: refined.as_ref().and_then(|r| r.sigma_attitude_latency_s),

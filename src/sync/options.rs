@@ -16,6 +16,10 @@ pub enum Method {
     Paper,
     /// Every return on the targets' surveyed planes.
     Refined,
+    /// The refined estimator where it constrains the clock better than the paper method (its
+    /// sigma t0 below the paper's), else the paper method; the answer's method and, on a
+    /// fall-back, the refined estimator's reason are in the result.
+    Auto,
 }
 
 /// A surveyed sync target: its centre (sync point) and, for the refined estimator, the unit

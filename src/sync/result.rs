@@ -126,8 +126,12 @@ pub struct RefinedEstimate {
 /// Result of [`super::estimate`]: the answer (per `method`) and everything behind it.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SyncResult {
-    /// Method of the answer.
+    /// Method of the answer (`paper` or `refined`; with `auto`, the one chosen).
     pub method: Method,
+    /// With `method = "auto"` and the paper method's answer: why the refined estimator was not
+    /// used (its refusal, with its sigma t0 against the paper's).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fallback: Option<String>,
     /// The answer: t0, T and their covariance (feeds georeferencing and uncertainty).
     pub clock: ClockEstimate,
     /// Attitude latency (s) when estimated and constrained.

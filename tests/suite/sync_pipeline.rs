@@ -90,6 +90,12 @@ fn sync_stage_feeds_georeferencing_and_the_report() {
     assert_eq!(r["method"], "refined");
     assert!(r["clock"]["cov_t0_period"][1][1].as_f64().unwrap() > 0.0);
     assert_eq!(r["sightings"].as_array().unwrap().len(), 8);
+    // `method = "auto"` in a pipeline: the refined estimate (it beats the paper method here),
+    // reported as such, the same bytes as `refined`.
+    let auto = ["sync.method = \"auto\"".to_string()];
+    let again = run(&config::load(&path, &auto).unwrap(), &opts).unwrap();
+    assert_eq!(again.sync[0].result.method, kinescan::sync::Method::Refined);
+    assert_eq!(again.sync[0].result.clock, c);
     // The LAS times come from the synchronised clock: the first point's GPS time is that of
     // the first written return.
     let span = report.inputs[0].time_span_s.unwrap();

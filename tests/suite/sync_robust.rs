@@ -95,7 +95,38 @@ fn refined_refuses_what_the_data_do_not_constrain() {
     );
     let mut o = options(&s, 0.1);
     o.method = Method::Paper;
-    assert!(estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).is_ok());
+    let paper = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap();
+    assert!(paper.fallback.is_none());
+    // `auto` answers with the paper method there and says why the refined one was not used.
+    o.method = Method::Auto;
+    let auto = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap();
+    assert_eq!(auto.method, Method::Paper);
+    assert_eq!(auto.clock, paper.clock);
+    assert!(auto.refined.is_none());
+    let why = auto.fallback.as_deref().unwrap_or_default();
+    assert!(
+        why.contains("not constrained") || why.contains("singular"),
+        "{why}"
+    );
+    assert!(auto.sightings.iter().all(|s| s.refined_returns.is_empty()));
+}
+
+/// Where the refined estimator constrains the clock (target faces turned towards the route),
+/// `auto` gives exactly its answer, with the paper method's estimate beside it.
+#[test]
+fn auto_takes_the_refined_estimate_where_it_is_better() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = survey(&scenario(PAPER, 4), dir.path());
+    let mut o = options(&s, 0.1);
+    o.method = Method::Refined;
+    let refined = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap();
+    o.method = Method::Auto;
+    let auto = estimate(&s.traj, &s.sensor, &s.file, &s.targets, &o).unwrap();
+    assert_eq!(auto.method, Method::Refined);
+    assert!(auto.fallback.is_none());
+    assert_eq!(auto.clock, refined.clock);
+    assert_eq!(auto.paper, refined.paper);
+    assert!(auto.clock.sigma_t0_s < auto.paper.sigma_t0_s);
 }
 
 #[test]

@@ -26,7 +26,8 @@ pub struct SyncConfig {
     /// Detection searches this far (s) either side of the predicted sighting.
     #[serde(default = "default_sync_window_s")]
     pub window_s: f64,
-    /// `paper` (one observation per sighting) or `refined` (every target return).
+    /// `paper` (one observation per sighting), `refined` (every target return) or `auto`
+    /// (`refined` where its sigma t0 beats the paper method's, else `paper`).
     #[serde(default = "default_sync_method")]
     pub method: crate::sync::Method,
     /// Estimate the attitude latency jointly (refined only; reported only if constrained).
@@ -104,7 +105,7 @@ impl SyncConfig {
         if self.estimate_latency && self.method == crate::sync::Method::Paper {
             return Err(refuse(
                 "sync.estimate_latency",
-                "the latency is estimated by method = \"refined\" only",
+                "the latency is estimated by method = \"refined\" or \"auto\" only",
             ));
         }
         Ok(())
