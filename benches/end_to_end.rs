@@ -13,7 +13,8 @@
 //!
 //! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
 //! `KINESCAN_BENCH_REPS` to change them; `KINESCAN_BENCH_DIR=DIR` to keep the generated survey
-//! for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case alone. See docs/performance.md.
+//! for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case alone, `KINESCAN_BENCH_CASE=day`
+//! for `kinescan day` against `kinescan run` ([`day_case`]). See docs/performance.md.
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
@@ -232,6 +233,9 @@ fn main() {
     if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "laz") {
         return laz_case(dir, reps);
     }
+    if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "day") {
+        return day_case(dir, reps);
+    }
     // The floor writes as many bytes as the run without uncertainty (the 3.0x criterion's run).
     run_once(dir, "pipeline.toml", 2);
     let las_bytes = std::fs::metadata(dir.join("out/cloud.las")).unwrap().len();
@@ -323,5 +327,35 @@ fn laz_case(dir: &Path, reps: usize) {
         "LAZ 2 threads / 1 thread speed-up: wall {}, compress stage {}",
         fmt_ratio(ratio_stats(&walls[2], &walls[1])),
         fmt_ratio(ratio_stats(&compress_s[2], &compress_s[1]))
+    );
+}
+
+/// `kinescan day` (the survey as one pass, per-pass layout: units, journal, merge) against
+/// `kinescan run` of the same pipeline, both on 2 threads, alternated: medians and the ratio.
+fn day_case(dir: &Path, reps: usize) {
+    let day = "[day]\ntemplate = \"pipeline.toml\"\nout = \"night\"\n\
+               layout = { kind = \"per_pass\" }\n\n[[passes]]\nname = \"p\"\n\
+               profiles = [\"p.ksprof\"]\n";
+    std::fs::write(dir.join("day.toml"), day).unwrap();
+    let (mut run_s, mut day_s) = (Vec::new(), Vec::new());
+    for _ in 0..reps {
+        run_s.push(run_once(dir, "pipeline.toml", 2).1);
+        // A fresh night each time: with the previous journal the day would only re-merge.
+        let _ = std::fs::remove_dir_all(dir.join("night"));
+        let started = std::time::Instant::now();
+        let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
+            .args(["--quiet", "day", "day.toml", "--threads", "2"])
+            .current_dir(dir)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        day_s.push(started.elapsed().as_secs_f64());
+    }
+    println!("day case, medians of {reps} alternated repetitions; [min-max] of the ratios");
+    println!(
+        "kinescan run {:.3} s, kinescan day {:.3} s: day / run {}",
+        median(run_s.clone()),
+        median(day_s.clone()),
+        fmt_ratio(ratio_stats(&day_s, &run_s))
     );
 }
