@@ -12,9 +12,10 @@
 //! and LAZ on 1 against 2 threads, alternated, with the compression stage's own time.
 //!
 //! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
-//! `KINESCAN_BENCH_REPS` to change them; `KINESCAN_BENCH_DIR=DIR` to keep the generated survey
-//! for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case alone, `KINESCAN_BENCH_CASE=day`
-//! for `kinescan day` against `kinescan run` ([`day_case`]). See docs/performance.md.
+//! `KINESCAN_BENCH_REPS` to change them (0: write the survey only); `KINESCAN_BENCH_DIR=DIR`
+//! to keep the generated survey for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case
+//! alone, `KINESCAN_BENCH_CASE=day` for `kinescan day` against `kinescan run` ([`day_case`]).
+//! See docs/performance.md.
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};
@@ -230,6 +231,9 @@ fn main() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(3);
+    if reps == 0 {
+        return; // the survey only (profiling, memory measurements)
+    }
     if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "laz") {
         return laz_case(dir, reps);
     }
@@ -262,31 +266,61 @@ fn main() {
             runs[k].push(run_once(dir, file, *threads));
         }
     }
-    println!("I/O floor: {:.3} s", median(floor.clone()));
+    print_tables(&floor, &runs, &configs, files.len());
+    laz_case(dir, reps);
+}
+
+/// The markdown tables of docs/performance.md: one row per configuration, then every ratio of
+/// issue #13's acceptance against its target. `configs` is 1 thread then 2 threads, `per_threads`
+/// files each, the run without uncertainty first.
+fn print_tables(
+    floor: &[f64],
+    runs: &[Vec<(f64, f64, f64)>],
+    configs: &[(usize, &str)],
+    per_threads: usize,
+) {
     let walls: Vec<Vec<f64>> = runs
         .iter()
         .map(|r| r.iter().map(|r| r.1).collect())
         .collect();
-    for (k, ((threads, file), r)) in configs.iter().zip(&runs).enumerate() {
-        let base = k - k % files.len();
-        let rps = median(r.iter().map(|r| r.0).collect());
-        let rss = median(r.iter().map(|r| r.2).collect());
+    println!(
+        "\n| | wall (median) | M returns/s | run/floor [min-max] | vs no uncertainty | peak RSS |"
+    );
+    println!("|---|---|---|---|---|---|");
+    println!("| I/O floor | {:.3} s | | 1 | | |", median(floor.to_vec()));
+    for (k, ((threads, file), r)) in configs.iter().zip(runs).enumerate() {
+        let base = k - k % per_threads;
         println!(
-            "{file}, {threads} thread(s): {:.3} s, {:.2} M returns/s georeferenced, \
-             run/floor {}, vs pipeline.toml {}, peak RSS {rss:.0} MB",
+            "| {file}, {threads} thread(s) | {:.3} s | {:.2} | {} | {} | {:.0} MB |",
             median(walls[k].clone()),
-            rps / 1e6,
-            fmt_ratio(ratio_stats(&walls[k], &floor)),
+            median(r.iter().map(|r| r.0).collect()) / 1e6,
+            fmt_ratio(ratio_stats(&walls[k], floor)),
             fmt_ratio(ratio_stats(&walls[k], &walls[base])),
+            median(r.iter().map(|r| r.2).collect()),
         );
     }
-    for (k, file) in files.iter().enumerate() {
-        println!(
-            "{file}: 2 threads / 1 thread speed-up {}",
-            fmt_ratio(ratio_stats(&walls[k], &walls[k + files.len()]))
-        );
+    let two = per_threads; // index of the run without uncertainty on 2 threads
+    let mut acceptance = vec![(
+        "run/floor, no uncertainty, 2 threads".to_string(),
+        ratio_stats(&walls[two], floor),
+        "<= 3.0x",
+    )];
+    for k in 0..per_threads {
+        let name = format!("2 threads / 1 thread, {}", configs[k].1);
+        acceptance.push((name, ratio_stats(&walls[k], &walls[k + two]), ">= 1.8x"));
     }
-    laz_case(dir, reps);
+    for (k, target) in [(1, "<= 1.25x"), (2, "<= 1.5x")] {
+        for base in [0, two] {
+            let (threads, file) = configs[base + k];
+            let name = format!("{file} / pipeline.toml, {threads} thread(s)");
+            acceptance.push((name, ratio_stats(&walls[base + k], &walls[base]), target));
+        }
+    }
+    println!("\n| acceptance (issue #13) | median [min-max] | target |");
+    println!("|---|---|---|");
+    for (name, ratio, target) in acceptance {
+        println!("| {name} | {} | {target} |", fmt_ratio(ratio));
+    }
 }
 
 /// `output.format = "laz"` against LAS (both on 2 threads) and LAZ on 1 against 2 threads,
