@@ -215,6 +215,25 @@ fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
     );
     ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
     assert_counts_add_up(&d.join("night"));
+    // The morning report: every pass's written count, in Markdown and in HTML.
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("night/day.report.json")).unwrap()).unwrap();
+    let md = std::fs::read_to_string(d.join("night/report.md")).unwrap();
+    let html = std::fs::read_to_string(d.join("night/report.html")).unwrap();
+    for p in report["passes"].as_array().unwrap() {
+        let (name, written) = (p["name"].as_str().unwrap(), &p["counts"]["written"]);
+        assert!(
+            md.contains(&format!("| {name} | 2 | 20000 | {written} |")),
+            "{md}"
+        );
+        assert!(html.contains(&format!(
+            "<td>{name}</td><td>2</td><td>20000</td><td>{written}</td>"
+        )));
+    }
+    assert!(
+        md.find("## Warnings") < md.find("## Passes"),
+        "warnings first"
+    );
     let plan: serde_json::Value =
         serde_json::from_slice(&std::fs::read(d.join("night/plan.json")).unwrap()).unwrap();
     let units = plan["units"].as_array().unwrap().len();

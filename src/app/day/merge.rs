@@ -4,6 +4,7 @@
 
 use super::config::{Layout, LoadedDay};
 use super::plan::{pass_pipeline, Plan};
+use super::quality::{SigmaHistograms, SigmaOffsets, SigmaStats};
 use super::units::unit_path;
 use crate::io::las::{stats_of_records, LasSummary};
 use crate::io::laz::LasLayout;
@@ -18,9 +19,16 @@ use std::path::PathBuf;
 
 /// Writes the day's LAS files into `set`'s staging folders (compressed when the template's
 /// `output.format` says so); gives their summaries (staged paths), in file-name order.
-pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<LasSummary>> {
+pub fn merge(
+    day: &LoadedDay,
+    plan: &Plan,
+    set: &mut OutputSet,
+) -> Result<(Vec<LasSummary>, Vec<SigmaStats>)> {
     let out = &day.config.day.out;
     let mut sinks: BTreeMap<PathBuf, LasSink> = BTreeMap::new();
+    let mut by_pass = vec![SigmaHistograms::default(); day.config.passes.len()];
+    let mut tile_sigma: BTreeMap<String, SigmaHistograms> = BTreeMap::new();
+    let offsets = SigmaOffsets::of(&OutputSchema::new(&day.template.config));
     let first = pass_pipeline(day, 0, &out.join("x.las"));
     let traj = open_trajectory(&first.config)?;
     let frame = map_frame(&first.config.output.frame, &traj)?;
@@ -31,6 +39,9 @@ pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<La
         let layout = LasLayout::of(&bytes).map_err(|p| Error::bad_file(&path, p))?;
         let records = &bytes[layout.offset_to_points..];
         let pass = &day.config.passes[unit.pass].name;
+        if let Some(at) = offsets {
+            by_pass[unit.pass].add_records(records, layout.record_len, at);
+        }
         let groups: Vec<(String, Cow<[u8]>)> = match day.config.day.layout {
             Layout::PerPass => vec![(format!("{pass}.las"), Cow::Borrowed(records))],
             Layout::Tiles { size_m } => by_tile(records, &bytes, layout.record_len, size_m),
@@ -44,6 +55,11 @@ pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<La
                 let settings = SinkSettings::new(&c, &schema, &frame, geoid.as_ref(), &traj)?;
                 sinks.insert(staged.clone(), LasSink::new(settings));
             }
+            if let (Some(at), Layout::Tiles { .. }) = (offsets, &day.config.day.layout) {
+                let stem = name.trim_end_matches(".las").to_string();
+                let h = tile_sigma.entry(stem).or_default();
+                h.add_records(part, layout.record_len, at);
+            }
             let sink = sinks.get_mut(&staged).expect("inserted above");
             sink.write(part, &stats_of_records(part, sink.layout()))?;
         }
@@ -52,7 +68,16 @@ pub fn merge(day: &LoadedDay, plan: &Plan, set: &mut OutputSet) -> Result<Vec<La
     for (_, sink) in sinks {
         summaries.extend(sink.finish()?);
     }
-    into_format(day.template.config.output.format, summaries)
+    let passes = day.config.passes.iter().zip(&by_pass);
+    let mut sigma: Vec<SigmaStats> = passes
+        .map(|(p, h)| h.stats(&format!("pass {}", p.name)))
+        .collect();
+    sigma.extend(tile_sigma.iter().map(|(tile, h)| h.stats(tile)));
+    if offsets.is_none() {
+        sigma.clear();
+    }
+    let summaries = into_format(day.template.config.output.format, summaries)?;
+    Ok((summaries, sigma))
 }
 
 /// The records of a unit grouped by tile (`tile_<E>_<N>.las`, lower-left corner in m, tiles

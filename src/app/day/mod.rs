@@ -14,10 +14,12 @@
 pub mod config;
 pub mod journal;
 pub mod merge;
+pub mod morning;
 pub mod plan;
+pub mod quality;
 pub mod units;
 
-use crate::io::atomic::{remove_stale_temps, write_json};
+use crate::io::atomic::{remove_stale_temps, write_atomic, write_json};
 use crate::io::publish::{conclude, OutputSet, StemLock};
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
@@ -64,6 +66,8 @@ pub struct DayReport {
     pub outputs: Vec<OutputFile>,
     /// Seconds per step: plan, units, merge.
     pub timings_s: BTreeMap<String, f64>,
+    /// Sigma statistics per pass, then per tile (none without `[uncertainty]`).
+    pub sigma: Vec<quality::SigmaStats>,
 }
 
 /// One pass in the day report.
@@ -198,11 +202,20 @@ fn publish(
     let report_path = out.join("day.report.json");
     let previous = previous_outputs(&report_path);
     let mut set = OutputSet::new("day");
-    let result = merge::merge(day, plan, &mut set).and_then(|summaries| {
+    let result = merge::merge(day, plan, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
+        report.sigma = sigma;
         timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
         report.timings_s = timings;
         write_json(&set.stage(&report_path)?, &report)?;
+        write_atomic(
+            &set.stage(&out.join("report.md"))?,
+            morning::markdown(&report, plan).as_bytes(),
+        )?;
+        write_atomic(
+            &set.stage(&out.join("report.html"))?,
+            morning::html(&report, plan)?.as_bytes(),
+        )?;
         crate::interrupt::check()?;
         Ok(report)
     });
@@ -264,6 +277,7 @@ fn day_report(
         totals,
         outputs,
         timings_s: BTreeMap::new(),
+        sigma: Vec::new(),
     })
 }
 

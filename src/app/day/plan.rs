@@ -37,6 +37,22 @@ pub struct PlannedInput {
     pub point_source_id: u16,
     /// The clock its returns are timed with (estimated with `[sync]`).
     pub clock: PlannedClock,
+    /// The sync that estimated it (with `[sync]`), for the morning report.
+    #[serde(default)]
+    pub sync: Option<PlannedSync>,
+}
+
+/// What the morning report shows of a sync.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct PlannedSync {
+    /// The method that answered (`paper` or `refined`).
+    pub method: crate::sync::Method,
+    /// Chi-square of the answer and its degrees of freedom.
+    pub chi2: f64,
+    /// Degrees of freedom of `chi2`.
+    pub dof: usize,
+    /// With `method = "auto"`: why the refined estimator did not answer.
+    pub fallback: Option<String>,
 }
 
 /// The numbers of a [`ResolvedClock`] that a sync may change.
@@ -196,7 +212,6 @@ pub fn make(
         let name = &day.config.passes[pass].name;
         let plots = day.config.day.out.join(format!("sync_{name}.las"));
         let synced = sync::run(&pass_pipeline(day, pass, &plots).config, prep)?;
-        reports.extend(synced.reports);
         for (k, (input, clock)) in prep.inputs.iter().zip(&synced.clocks).enumerate() {
             let index = plan.inputs.len();
             let cuts = unit_cuts(&input.file, clock, day.config.day.unit_s, chunk_returns)?;
@@ -210,13 +225,24 @@ pub fn make(
                     time_window_s: [t(pair[0]), t(pair[1] - 1)],
                 });
             }
+            let sync = (synced.reports.len() == prep.inputs.len()).then(|| {
+                let r = &synced.reports[k].result;
+                PlannedSync {
+                    method: r.method,
+                    chi2: r.clock.chi2,
+                    dof: r.clock.dof,
+                    fallback: r.fallback.clone(),
+                }
+            });
             plan.inputs.push(PlannedInput {
                 pass,
                 profiles: input.original.clone(),
                 point_source_id: input.point_source_id,
                 clock: PlannedClock::of(clock),
+                sync,
             });
         }
+        reports.extend(synced.reports);
     }
     Ok((plan, reports))
 }
