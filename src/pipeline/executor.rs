@@ -9,11 +9,11 @@ use super::report::{FileRecord, InputReport, RejectReason, ReturnCounts};
 use super::schema::PointFill;
 use super::write::{encode_error, LasSink};
 use crate::io::counters::CounterTracker;
+use crate::io::digest::profile_sha256;
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::ProfileFile;
 use crate::{Error, Result};
 use rayon::prelude::*;
-use sha2::{Digest, Sha256};
 use std::ops::Range;
 
 /// Points encoded at a time (keeps the per-thread point buffer in cache).
@@ -176,7 +176,7 @@ pub fn process_records(
     let pool = BufferPool::default();
     let (hash_tx, hash_rx) = std::sync::mpsc::sync_channel::<Range<usize>>(HASH_QUEUE_CHUNKS);
     let sha256 = std::thread::scope(|scope| {
-        let hasher = scope.spawn(|| hash_input(file, hash_rx));
+        let hasher = scope.spawn(|| profile_sha256(file, hash_rx));
         let writer = scope.spawn(|| -> Result<()> {
             let hash_tx = hash_tx; // moved in: dropping it ends the hasher
             for batch in rx {
@@ -206,18 +206,6 @@ pub fn process_records(
         Ok::<_, Error>(hasher.join().expect("hasher thread panicked"))
     })?;
     acc.finish(input, sha256)
-}
-
-/// SHA-256 (hex) of `file`'s header and of the record ranges received, in order; releases
-/// each range's pages once hashed (all of the file when every chunk was written).
-fn hash_input(file: &ProfileFile, ranges: std::sync::mpsc::Receiver<Range<usize>>) -> String {
-    let mut hasher = Sha256::new();
-    hasher.update(file.header_bytes());
-    for r in ranges {
-        hasher.update(file.record_bytes(r.clone()));
-        file.release(r);
-    }
-    super::report::hex(&hasher.finalize())
 }
 
 /// What the writer side learns about one profile file.
