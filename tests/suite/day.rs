@@ -408,3 +408,52 @@ fn bad_day_files_are_refused_before_any_work() {
         );
     }
 }
+
+/// `[day.night] diagnose = true`: each pass diagnosed against the template's patches into
+/// `<out>/diagnosis_<pass>/`, the verdicts in the day report and the morning report.
+#[test]
+fn the_night_diagnoses_each_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let template = std::fs::read_to_string(d.join("template.toml")).unwrap();
+    std::fs::write(
+        d.join("template.toml"),
+        template + "[diagnose]\npatches = \"patches.csv\"\n",
+    )
+    .unwrap();
+    let day = day_file(
+        d,
+        "day",
+        "night",
+        "{ kind = \"per_pass\" }",
+        &three_passes(),
+    );
+    let text = std::fs::read_to_string(&day).unwrap();
+    // The night table before the first pass (TOML: after it would belong to the pass).
+    let text = text.replacen(
+        "\n[[passes]]",
+        "\n[day.night]\ndiagnose = true\n\n[[passes]]",
+        1,
+    );
+    std::fs::write(&day, text).unwrap();
+    let out = kinescan(&["day", day.to_str().unwrap(), "-q"]);
+    ok(out);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(d.join("night/day.report.json")).unwrap()).unwrap();
+    let diagnosis = report["diagnosis"].as_array().unwrap();
+    assert_eq!(diagnosis.len(), PASSES.len());
+    let md = std::fs::read_to_string(d.join("night/report.md")).unwrap();
+    for (k, pass) in PASSES.iter().enumerate() {
+        assert_eq!(diagnosis[k]["pass"], *pass);
+        let json = d.join(format!("night/diagnosis_{pass}/diagnosis.json"));
+        let own: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let verdict = diagnosis[k]["verdict"].as_str().unwrap();
+        assert!(
+            !verdict.is_empty() && own["verdict"].is_string(),
+            "{verdict}"
+        );
+        assert!(md.contains(&format!("| {pass} | {verdict} |")), "{md}");
+    }
+}

@@ -15,6 +15,7 @@ pub mod config;
 pub mod journal;
 pub mod merge;
 pub mod morning;
+pub mod night;
 pub mod plan;
 pub mod quality;
 pub mod units;
@@ -68,6 +69,8 @@ pub struct DayReport {
     pub timings_s: BTreeMap<String, f64>,
     /// Sigma statistics per pass, then per tile (none without `[uncertainty]`).
     pub sigma: Vec<quality::SigmaStats>,
+    /// The night's diagnosis per pass (with `day.night.diagnose`).
+    pub diagnosis: Vec<night::PassDiagnosis>,
 }
 
 /// One pass in the day report.
@@ -205,6 +208,7 @@ fn publish(
     let result = merge::merge(day, plan, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
         report.sigma = sigma;
+        report.diagnosis = night::diagnose_passes(day, plan)?;
         timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
         report.timings_s = timings;
         write_json(&set.stage(&report_path)?, &report)?;
@@ -278,6 +282,7 @@ fn day_report(
         outputs,
         timings_s: BTreeMap::new(),
         sigma: Vec::new(),
+        diagnosis: Vec::new(),
     })
 }
 

@@ -91,13 +91,7 @@ fn sections(r: &DayReport, plan: &Plan) -> Vec<(String, Vec<Vec<String>>)> {
         ("Passes".into(), passes(r)),
         ("Sync".into(), sync(r, plan)),
         ("Sigma".into(), sigma(r)),
-        (
-            "Diagnosis".into(),
-            note(
-                "verdict",
-                vec!["not run: the night does not diagnose yet (docs/nightly.md)".into()],
-            ),
-        ),
+        ("Diagnosis".into(), diagnosis(r)),
         ("Timings".into(), timings(r)),
     ]
 }
@@ -131,6 +125,13 @@ fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
                 i.profiles.display()
             ));
         }
+    }
+    for d in r.diagnosis.iter().filter(|d| !d.set.is_empty()) {
+        w.push(format!(
+            "pass {}: the diagnosis names a correction, not applied: {}",
+            d.pass,
+            d.set.join(" ")
+        ));
     }
     if r.sigma.is_empty() {
         w.push("no per-point sigma: the template has no [uncertainty]".into());
@@ -253,6 +254,35 @@ fn sigma(r: &DayReport) -> Vec<Vec<String>> {
             mm(s.sigma_z_p95_m),
             mm(s.thu95_median_m),
             mm(s.thu95_p95_m),
+        ]);
+    }
+    t
+}
+
+fn diagnosis(r: &DayReport) -> Vec<Vec<String>> {
+    if r.diagnosis.is_empty() {
+        let off = "not run (day.night.diagnose = false)".to_string();
+        return vec![vec!["verdict".into()], vec![off]];
+    }
+    let head = [
+        "pass",
+        "verdict",
+        "chi2/dof before",
+        "after",
+        "RMS before (mm)",
+        "after (mm)",
+        "correction (not applied)",
+    ];
+    let mut t = vec![head.map(String::from).to_vec()];
+    for d in &r.diagnosis {
+        t.push(vec![
+            d.pass.clone(),
+            d.verdict.clone(),
+            format!("{:.2}", d.chi2_per_dof[0]),
+            format!("{:.2}", d.chi2_per_dof[1]),
+            format!("{:.1}", d.rms_m[0] * 1e3),
+            format!("{:.1}", d.rms_m[1] * 1e3),
+            d.set.join(" "),
         ]);
     }
     t
