@@ -395,19 +395,25 @@ fn a_full_disk_keeps_the_old_outputs_and_leaves_no_temporary() {
             "inputs.profiles=[\"big.ksprof\"]",
         ],
     );
-    let e = stderr(&o);
+    assert_full_disk_kept(&o, &out, "out/day.las", &before);
+}
+
+/// A run that failed on a full disk: exit non-zero, the message names `file` (its user path,
+/// never a temporary) with the OS's text once, the outputs in `out` are `before`, no temporary.
+fn assert_full_disk_kept(o: &Output, out: &Path, file: &str, before: &[(String, Vec<u8>)]) {
+    let e = stderr(o);
     assert!(!o.status.success(), "{e}");
     assert!(
-        e.contains("out/day.las") && e.matches("No space left").count() == 1,
+        e.contains(file) && e.matches("No space left").count() == 1,
         "{e}"
     );
     assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
     assert_eq!(
-        common::tree(&out),
+        common::tree(out),
         before,
         "the failed run changed the outputs"
     );
-    assert_no_temp(&out);
+    assert_no_temp(out);
 }
 
 /// The disk fills at the report: a tmpfs sized from a first run's measured LAS and report so
@@ -437,19 +443,7 @@ fn a_disk_full_at_the_report_keeps_the_old_las_and_report() {
     assert!(kinescan(d, &["run", "pipeline.toml"]).status.success());
     let before = common::tree(&out);
     let o = kinescan(d, &["run", "pipeline.toml"]);
-    let e = stderr(&o);
-    assert!(!o.status.success(), "{e}");
-    assert!(
-        e.contains("out/day.report.json") && e.matches("No space left").count() == 1,
-        "{e}"
-    );
-    assert!(!e.contains(".kinescan-"), "a temporary named: {e}");
-    assert_eq!(
-        common::tree(&out),
-        before,
-        "the failed run changed the outputs"
-    );
-    assert_no_temp(&out);
+    assert_full_disk_kept(&o, &out, "out/day.report.json", &before);
     // The next run, with fewer points, fits and publishes its own set.
     profiles(&d.join("small.ksprof"), 10, |_, _| {});
     let small = [
