@@ -4,6 +4,7 @@
 use crate::sim_support::run;
 use kinescan::app::diagnose::model::{Effect, ObservationSet};
 use kinescan::app::diagnose::observe::{observe, ObserveCounts};
+use kinescan::app::diagnose::report::Verdict;
 use kinescan::io::patches::read_patches;
 use kinescan::pipeline::config::{self, DiagnoseConfig};
 use kinescan::sim::Scenario;
@@ -92,7 +93,7 @@ fn bad_input_names_what_is_missing() {
     let dir = tempfile::tempdir().unwrap();
     city_block(dir.path(), "", 3);
     let d = dir.path();
-    let no_unc = std::fs::read_to_string(d.join("pipeline.toml")).unwrap();
+    let no_unc = pipeline_text(d);
     let cut = no_unc.find("[uncertainty]").unwrap();
     std::fs::write(d.join("no_unc.toml"), &no_unc[..cut]).unwrap();
     let p = config::load(&d.join("no_unc.toml"), &[]).unwrap();
@@ -103,6 +104,22 @@ fn bad_input_names_what_is_missing() {
         .to_string();
     assert!(
         err.contains("no_unc.toml") && err.contains("`uncertainty`"),
+        "{err}"
+    );
+
+    // No SMRMSG: no navigation sigmas, so no predicted sigma to judge the residuals by.
+    let no_smrmsg: String = pipeline_text(d)
+        .lines()
+        .filter(|l| !l.starts_with("smrmsg"))
+        .collect::<Vec<_>>()
+        .join("\n");
+    std::fs::write(d.join("no_smrmsg.toml"), no_smrmsg).unwrap();
+    // Refused as the pipeline is loaded, before any return is read.
+    let err = config::load(&d.join("no_smrmsg.toml"), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("no_smrmsg.toml") && err.contains("inputs.smrmsg"),
         "{err}"
     );
 
@@ -119,6 +136,78 @@ fn bad_input_names_what_is_missing() {
         .to_string();
     assert!(
         err.contains("far_patches.csv") && err.contains("no return"),
+        "{err}"
+    );
+}
+
+/// The pipeline file of `d`.
+fn pipeline_text(d: &Path) -> String {
+    std::fs::read_to_string(d.join("pipeline.toml")).unwrap()
+}
+
+/// References all in one place (two facades of one street side) cannot tell a boresight
+/// error about x from an encoder offset or a range zero: the diagnosis names the group with the
+/// true effect in it, says so in the summary with the data that would separate them, and never
+/// names one member alone; one reference alone is "cannot tell".
+#[test]
+fn references_in_one_place_name_a_group_or_cannot_tell() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    city_block(d, "boresight_error_deg = [0.05, 0.0, 0.0]", 5);
+    let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
+    let all = read_patches(&d.join("survey/patches.csv")).unwrap();
+    let first = all.iter().find(|q| q.normal_enu[2].abs() < 0.1).unwrap();
+    let along = |q: &kinescan::io::patches::PlanarPatch| {
+        (0..3)
+            .map(|i| q.normal_enu[i] * first.normal_enu[i])
+            .sum::<f64>()
+            > 0.9
+    };
+    let mut same_side: Vec<_> = all.iter().filter(|q| along(q)).cloned().collect();
+    same_side.sort_by(|a, b| {
+        let dist = |q: &kinescan::io::patches::PlanarPatch| {
+            (q.lat_rad - first.lat_rad).hypot(q.lon_rad - first.lon_rad)
+        };
+        dist(a).total_cmp(&dist(b))
+    });
+    let diagnose_with = |patches: &[kinescan::io::patches::PlanarPatch], name: &str| {
+        let path = d.join(name);
+        kinescan::io::patches::write_patches(&path, patches).unwrap();
+        let req = kinescan::app::diagnose::Request {
+            patches: path,
+            out_dir: d.join(format!("diag_{name}")),
+        };
+        kinescan::app::diagnose::run(&p, &req)
+    };
+
+    let r = diagnose_with(&same_side[..2], "two.csv").unwrap();
+    assert_eq!(r.verdict, Verdict::Effect, "{}", r.reason);
+    let group = r
+        .groups
+        .iter()
+        .find(|g| r.effects.first() == g.members.first())
+        .expect("a group named");
+    assert!(group.members.len() > 1, "{group:?}");
+    assert!(
+        group.members.iter().any(|m| m == "boresight_x_deg"),
+        "{group:?}"
+    );
+    assert!(
+        group.members.iter().all(|m| r.effects.contains(m)),
+        "{:?}",
+        r.effects
+    );
+    let summary = std::fs::read_to_string(d.join("diag_two.csv/summary.md")).unwrap();
+    assert!(
+        summary.contains("cannot tell apart") && summary.contains(&group.hint),
+        "{summary}"
+    );
+
+    let err = diagnose_with(&same_side[..1], "one.csv")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("cannot tell") && err.contains("at least 2"),
         "{err}"
     );
 }
@@ -141,7 +230,7 @@ fn range_zero_survey(d: &Path) -> (config::LoadedPipeline, kinescan::app::diagno
 /// shrinks after re-processing.
 #[test]
 fn diagnose_names_a_range_zero_error_and_the_rerun_closes_the_gap() {
-    use kinescan::app::diagnose::{report::Verdict, run};
+    use kinescan::app::diagnose::run;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let (p, req) = range_zero_survey(d);

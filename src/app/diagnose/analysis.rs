@@ -136,8 +136,15 @@ fn reason(sel: &Selection, located: &[Covariate], correction: Option<&Correction
             let partial = sel.chosen.as_ref().map_or(
                 "no catalogue effect is significant on both halves".to_string(),
                 |f| {
+                    let left = sel.remaining.map_or(String::new(), |r| {
+                        format!(
+                            " and leaves chi2/dof {:.3} (p = {:.2e}), which the model still rejects",
+                            r.chi2 / r.n as f64,
+                            r.p_value
+                        )
+                    });
                     format!(
-                        "the best catalogue explanation ({}) removes only {} of the held-out excess chi2",
+                        "the best catalogue explanation ({}) removes {} of the held-out excess chi2{left}",
                         names(&f.effects),
                         percent(sel.closure)
                     )

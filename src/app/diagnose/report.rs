@@ -212,12 +212,41 @@ impl Diagnosis {
         }
     }
 
+    /// The named groups of more than one effect: which effects the references cannot tell
+    /// apart, which one the re-run uses, and what data would separate them.
+    fn write_named_groups(&self, s: &mut String) {
+        let named = self
+            .groups
+            .iter()
+            .filter(|g| g.members.len() > 1 && self.effects.contains(&g.members[0]));
+        for (i, g) in named.enumerate() {
+            if i == 0 {
+                let _ = writeln!(s, "## Effects these references cannot tell apart\n");
+            }
+            let _ = writeln!(
+                s,
+                "The residuals fit each of {} equally well (|correlation| > 0.9 on these \
+                 references): the estimate of each is what it would be if it alone were the \
+                 cause. The re-run corrects `{}` (the more common cause). To tell them apart: \
+                 {}.\n",
+                g.members
+                    .iter()
+                    .map(|m| format!("`{m}`"))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                g.members[0],
+                g.hint
+            );
+        }
+    }
+
     /// `summary.md`: verdict, gap before/after, where it lies, the re-run, the plots, the data.
     pub fn summary(&self, pipeline: &Path) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "# Diagnosis of {}\n", pipeline.display());
         let _ = writeln!(s, "**Verdict: {}**\n", self.headline());
         let _ = writeln!(s, "{}\n", self.reason);
+        self.write_named_groups(&mut s);
         let _ = writeln!(s, "## Gap on the held-out references\n");
         let _ = writeln!(
             s,

@@ -12,9 +12,6 @@ use crate::Result;
 
 /// Default family-wise error rate of the selection's tests.
 pub const DEFAULT_ALPHA: f64 = 0.01;
-/// Share of the held-out excess chi2 an explanation must remove to "close" a rejected gap
-/// (unless what remains passes the chi2 test).
-pub const CLOSES_SHARE: f64 = 0.5;
 /// Most groups in one explanation.
 const MAX_GROUPS: usize = 4;
 
@@ -23,8 +20,7 @@ const MAX_GROUPS: usize = 4;
 pub enum Verdict {
     /// Catalogue effect(s) significant on the fit references, confirmed on the held-out
     /// references, and (when the model without them is rejected) closing the held-out gap:
-    /// removing at least [`CLOSES_SHARE`] of its excess chi2, or leaving a chi2 the test
-    /// accepts.
+    /// what remains on the held-out references after the correction passes the chi2 test.
     Effect,
     /// The model holds on the held-out references and no effect is significant.
     None,
@@ -305,8 +301,9 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
     let remaining = chosen
         .as_ref()
         .map(|c| NullTest::new(c.chi2_held_out, held.n, alpha));
-    let closes =
-        closure.is_some_and(|c| c >= CLOSES_SHARE) || remaining.is_some_and(|r| !r.rejected);
+    // A rejected gap is closed only when what the explanation leaves passes the same test: a
+    // right explanation leaves its estimation error alone (about k of chi2).
+    let closes = remaining.is_some_and(|r| !r.rejected);
     let verdict = match (&chosen, null.rejected) {
         (Some(_), false) => Verdict::Effect,
         (Some(_), true) if closes => Verdict::Effect,
