@@ -48,7 +48,9 @@ impl Binning {
             };
         }
         let n = sorted.len();
-        let mut edges: Vec<f64> = (1..bins.max(1)).map(|k| sorted[k * n / bins]).collect();
+        let mut edges: Vec<f64> = (1..bins.max(1))
+            .map(|k| sorted[widest_gap_near(&sorted, k * n / bins, n / (4 * bins))])
+            .collect();
         edges.dedup();
         edges.retain(|&e| e > lowest);
         Binning {
@@ -91,6 +93,23 @@ impl Binning {
             (lower, upper)
         }
     }
+}
+
+/// The rank within `reach` of `rank` whose value is farthest above the one before it: an
+/// edge there falls between clusters of values, not through one. A covariate measured with
+/// noise (the range) clusters where the geometry repeats (one cluster per beam angle on the
+/// ground below the van); an edge through a cluster would sort its returns by their noise,
+/// which the residual carries too, and show structure that is not there.
+fn widest_gap_near(sorted: &[f64], rank: usize, reach: usize) -> usize {
+    let lo = rank.saturating_sub(reach).max(1);
+    let hi = (rank + reach).min(sorted.len() - 1);
+    (lo..=hi)
+        .max_by(|&a, &b| {
+            (sorted[a] - sorted[a - 1])
+                .total_cmp(&(sorted[b] - sorted[b - 1]))
+                .then(b.cmp(&a))
+        })
+        .unwrap_or(rank)
 }
 
 /// One bin of a covariate.
@@ -397,6 +416,16 @@ mod tests {
             (Some(0), Some(1), Some(3))
         );
         assert_eq!(b.bounds(3), (7.0, 8.0));
+        // Clusters (one per beam angle): the quantile edges move to the gaps between them.
+        // Sizes 90, 110, 100, 100: the first quantile (rank 100) falls 10 ranks inside the
+        // second cluster, the others on cluster starts.
+        let xs: Vec<f64> = [90, 110, 100, 100]
+            .iter()
+            .enumerate()
+            .flat_map(|(c, &m)| (0..m).map(move |i| c as f64 + 1e-4 * i as f64))
+            .collect();
+        let b = Binning::new(Covariate::RangeM, &xs, 4);
+        assert_eq!(b.edges, vec![1.0, 2.0, 3.0]);
         let c = Binning::new(Covariate::Pass, &[2.0, 0.0, 2.0], 4);
         assert_eq!((c.len(), c.of(2.0), c.of(1.0)), (2, Some(1), None));
     }
