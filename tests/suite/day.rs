@@ -3,7 +3,7 @@
 //! points (SIGKILL and SIGTERM) and resumed with identical bytes; bad day files refused
 //! before any work.
 
-use crate::common::{write_ring_profiles, Lcg};
+use crate::common::{read_extra, write_ring_profiles, Lcg};
 use crate::sim_support;
 use kinescan::io::profiles::{ProfileFile, ProfileWriter};
 use std::path::{Path, PathBuf};
@@ -201,44 +201,70 @@ fn assert_counts_add_up(out: &Path) {
     assert!(points > 0);
 }
 
+/// A day file's `unit_s` set to `seconds` (2 s in [`day_file`]).
+fn set_unit_s(day: &Path, seconds: f64) {
+    let text = std::fs::read_to_string(day).unwrap();
+    let text = text.replacen("unit_s = 2.0\n", &format!("unit_s = {seconds:?}\n"), 1);
+    std::fs::write(day, text).unwrap();
+}
+
+/// The plan's work units per pass of the day in `out`.
+fn units_per_pass(out: &Path) -> Vec<usize> {
+    let plan: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("plan.json")).unwrap()).unwrap();
+    let mut per_pass = vec![0; PASSES.len()];
+    for u in plan["units"].as_array().unwrap() {
+        per_pass[u["pass"].as_u64().unwrap() as usize] += 1;
+    }
+    per_pass
+}
+
+/// The morning report's sigma_z and thu95 quantiles per pass (from the units' histograms)
+/// within half a histogram bin (0.4%) of the exact quantiles of the pass's LAS file.
+fn assert_sigma_quantiles_of_the_files(out: &Path) {
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+    let sigma = report["sigma"].as_array().unwrap();
+    assert_eq!(sigma.len(), PASSES.len(), "one row per pass (no tiles)");
+    for (row, pass) in sigma.iter().zip(PASSES) {
+        assert_eq!(row["scope"], format!("pass {pass}"));
+        let (names, values) = read_extra(&out.join(format!("{pass}.las")));
+        assert_eq!(row["points"].as_u64().unwrap(), values.len() as u64);
+        for (dim, key) in [("sigma_z", "sigma_z"), ("thu95", "thu95")] {
+            let at = names.iter().position(|n| n == dim).unwrap();
+            let mut v: Vec<f32> = values.iter().map(|p| p[at]).collect();
+            v.sort_by(f32::total_cmp);
+            for (q, name) in [(0.5, "median"), (0.95, "p95")] {
+                let exact = f64::from(v[(q * v.len() as f64).ceil() as usize - 1]);
+                let got = row[format!("{key}_{name}_m")].as_f64().unwrap();
+                assert!(
+                    (got / exact - 1.0).abs() < 0.004,
+                    "{pass} {key} {name}: {got} vs exact {exact}"
+                );
+            }
+        }
+    }
+}
+
+/// The day's run again: every unit is resumed from the journal (the digest a unit journals is
+/// the one a restart computes from its file) and the files are the same bytes.
+fn assert_rerun_resumes_every_unit(day: &Path, out: &Path) {
+    let before = las_files(out);
+    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+    assert_eq!(
+        report["units_resumed"], report["units"],
+        "a unit was run again"
+    );
+    assert!(las_files(out) == before, "a re-merged day differs");
+}
+
 #[test]
 fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     simulated_day(d);
-    let day = day_file(
-        d,
-        "day",
-        "night",
-        "{ kind = \"per_pass\" }",
-        &three_passes(),
-    );
-    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
-    assert_counts_add_up(&d.join("night"));
-    // The morning report: every pass's written count, in Markdown and in HTML.
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("night/day.report.json")).unwrap()).unwrap();
-    let md = std::fs::read_to_string(d.join("night/report.md")).unwrap();
-    let html = std::fs::read_to_string(d.join("night/report.html")).unwrap();
-    for p in report["passes"].as_array().unwrap() {
-        let (name, written) = (p["name"].as_str().unwrap(), &p["counts"]["written"]);
-        assert!(
-            md.contains(&format!("| {name} | 2 | 20000 | {written} |")),
-            "{md}"
-        );
-        assert!(html.contains(&format!(
-            "<td>{name}</td><td>2</td><td>20000</td><td>{written}</td>"
-        )));
-    }
-    assert!(
-        md.find("## Warnings") < md.find("## Passes"),
-        "warnings first"
-    );
-    let plan: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("night/plan.json")).unwrap()).unwrap();
-    let units = plan["units"].as_array().unwrap().len();
-    // 20,000 returns per pass, cut near 2 s (10,000 returns) on the 16,384-return chunk grid.
-    assert_eq!(units, 6, "two units per pass expected");
     for (k, pass) in PASSES.iter().enumerate() {
         let las = format!("run/{pass}.las");
         let source = format!("inputs.first_point_source_id={}", k + 1);
@@ -255,13 +281,48 @@ fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
             "--set",
             &format!("output.las={las}"),
         ]));
-        let from_day = std::fs::read(d.join(format!("night/{pass}.las"))).unwrap();
-        let from_run = std::fs::read(d.join(&las)).unwrap();
-        assert!(
-            from_day == from_run,
-            "{pass}: day output differs from kinescan run's"
-        );
     }
+    // 20,000 returns per pass: cut near 2 s (10,000 returns) on the 16,384-return chunk grid,
+    // two units per pass (merged into the pass's file); in 60 s units, one (the pass's file).
+    for (unit_s, units) in [(2.0, 2), (60.0, 1)] {
+        let out = format!("night_{unit_s}");
+        let day = day_file(d, &out, &out, "{ kind = \"per_pass\" }", &three_passes());
+        set_unit_s(&day, unit_s);
+        ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+        let out = d.join(&out);
+        assert_counts_add_up(&out);
+        assert_eq!(units_per_pass(&out), [units; 3], "unit_s {unit_s}");
+        for pass in PASSES {
+            let from_day = std::fs::read(out.join(format!("{pass}.las"))).unwrap();
+            let from_run = std::fs::read(d.join(format!("run/{pass}.las"))).unwrap();
+            assert!(
+                from_day == from_run,
+                "{pass}, unit_s {unit_s}: day output differs from kinescan run's"
+            );
+        }
+        assert_sigma_quantiles_of_the_files(&out);
+        assert_rerun_resumes_every_unit(&day, &out);
+    }
+    // The morning report: every pass's written count, in Markdown and in HTML.
+    let out = d.join("night_2");
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for p in report["passes"].as_array().unwrap() {
+        let (name, written) = (p["name"].as_str().unwrap(), &p["counts"]["written"]);
+        assert!(
+            md.contains(&format!("| {name} | 2 | 20000 | {written} |")),
+            "{md}"
+        );
+        assert!(html.contains(&format!(
+            "<td>{name}</td><td>2</td><td>20000</td><td>{written}</td>"
+        )));
+    }
+    assert!(
+        md.find("## Warnings") < md.find("## Passes"),
+        "warnings first"
+    );
 }
 
 #[test]

@@ -109,7 +109,11 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
     }
     let mut timings = BTreeMap::new();
     let started = Instant::now();
-    let (plan, mut prepared) = plan_day(&day, !matches!(step, Step::Unit(_)), opts)?;
+    let (plan, prepared) = plan_day(&day, !matches!(step, Step::Unit(_)), opts)?;
+    let mut prepared: Vec<Option<Prepared>> = match prepared {
+        Some(all) => all.into_iter().map(Some).collect(),
+        None => day.config.passes.iter().map(|_| None).collect(),
+    };
     let opts = &RunOptions {
         chunk_returns: plan.chunk_returns,
         ..opts.clone()
@@ -134,10 +138,11 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             continue;
         }
         crate::interrupt::check()?;
-        if prepared.is_empty() {
-            prepared = plan::prepare_passes(&day)?;
-        }
-        let entry = units::run_unit(&day, &plan, unit, &prepared[unit.pass], opts)?;
+        let pass = match &mut prepared[unit.pass] {
+            Some(p) => p,
+            slot => slot.insert(plan::prepare_pass(&day, unit.pass)?),
+        };
+        let entry = units::run_unit(&day, &plan, unit, pass, opts)?;
         done.insert(unit.id.clone(), entry);
     }
     timings.insert("units".to_string(), started.elapsed().as_secs_f64());
@@ -150,12 +155,16 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
 }
 
 /// The plan read back, or made (passes prepared and checked first) when `may_plan`; the
-/// prepared passes when they were needed.
-fn plan_day(day: &LoadedDay, may_plan: bool, opts: &RunOptions) -> Result<(Plan, Vec<Prepared>)> {
+/// prepared passes when they were needed to make it.
+fn plan_day(
+    day: &LoadedDay,
+    may_plan: bool,
+    opts: &RunOptions,
+) -> Result<(Plan, Option<Vec<Prepared>>)> {
     let plan_path = day.config.day.out.join("plan.json");
     let fingerprint = plan::fingerprint(day)?;
     if let Some(p) = plan::read_existing(&plan_path, &fingerprint)? {
-        return Ok((p, Vec::new()));
+        return Ok((p, None));
     }
     if !may_plan {
         let problem = "no plan: run `kinescan day DAY.toml --plan` first";
@@ -165,7 +174,7 @@ fn plan_day(day: &LoadedDay, may_plan: bool, opts: &RunOptions) -> Result<(Plan,
     plan::check_passes(day, &prepared)?;
     let (p, _sync_reports) = plan::make(day, &prepared, fingerprint, opts.chunk_returns.max(1))?;
     write_json(&plan_path, &p)?;
-    Ok((p, prepared))
+    Ok((p, Some(prepared)))
 }
 
 /// The journal's units whose output file is there with the journalled hash.
@@ -174,7 +183,7 @@ fn finished_units(day: &LoadedDay, plan: &Plan) -> Result<BTreeMap<String, Entry
     let mut entries = journal::read(&out.join("journal.jsonl"))?;
     entries.retain(|id, e| {
         plan.units.iter().any(|u| &u.id == id)
-            && journal::file_sha256(&units::unit_path(out, id)).as_ref() == Some(&e.sha256)
+            && journal::file_digest(&units::unit_path(out, id)).as_ref() == Some(&e.sha256)
     });
     Ok(entries)
 }
@@ -205,7 +214,7 @@ fn publish(
     let report_path = out.join("day.report.json");
     let previous = previous_outputs(&report_path);
     let mut set = OutputSet::new("day");
-    let result = merge::merge(day, plan, &mut set).and_then(|(summaries, sigma)| {
+    let result = merge::merge(day, plan, done, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
         report.sigma = sigma;
         report.diagnosis = night::diagnose_passes(day, plan)?;
