@@ -10,12 +10,18 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-const PASSES: [&str; 3] = ["p01", "p02", "p03"];
+pub const PASSES: [&str; 3] = ["p01", "p02", "p03"];
 
 /// Simulates the base drive (100 returns per profile) into `dir`, cuts its profiles into
 /// three pass files by profile counter and writes `template.toml` with the configured sensor.
 fn simulated_day(dir: &Path) {
+    simulated_day_with(dir, "");
+}
+
+/// [`simulated_day`] with `effects` (lines of the simulator's `[effects]` table) injected.
+pub fn simulated_day_with(dir: &Path, effects: &str) {
     let text = sim_support::BASE.replace("points_per_profile = 300", "points_per_profile = 100");
+    let text = text.replace("[origin]", &format!("[effects]\n{effects}\n[origin]"));
     let sc = kinescan::sim::Scenario::parse(&text, "day").unwrap();
     sim_support::run(&sc, dir, 2);
     let all = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
@@ -83,7 +89,7 @@ write_95 = true
 }
 
 /// Writes `<name>.toml`: the day of `passes` (name, profile files) into `out`.
-fn day_file(
+pub fn day_file(
     dir: &Path,
     name: &str,
     out: &str,
@@ -106,9 +112,9 @@ fn day_file(
 }
 
 /// A pass of a day file: name, profile files.
-type Pass = (&'static str, &'static [&'static str]);
+pub type Pass = (&'static str, &'static [&'static str]);
 
-fn three_passes() -> Vec<Pass> {
+pub fn three_passes() -> Vec<Pass> {
     vec![
         ("p01", &["p01.ksprof"]),
         ("p02", &["p02.ksprof"]),
@@ -116,20 +122,20 @@ fn three_passes() -> Vec<Pass> {
     ]
 }
 
-fn kinescan(args: &[&str]) -> std::process::Output {
+pub fn kinescan(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_kinescan"))
         .args(args)
         .output()
         .unwrap()
 }
 
-fn ok(out: std::process::Output) {
+pub fn ok(out: std::process::Output) {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "kinescan failed: {err}");
 }
 
 /// Every `.las` file of `dir` (not the units), by name, with its bytes.
-fn las_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
+pub fn las_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
     let mut files: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().path())
@@ -146,7 +152,7 @@ fn las_files(dir: &Path) -> Vec<(String, Vec<u8>)> {
 }
 
 /// The day report's counts: per pass and totals (timings left out).
-fn report_counts(out: &Path) -> serde_json::Value {
+pub fn report_counts(out: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(out.join("day.report.json")).unwrap();
     let r: serde_json::Value = serde_json::from_str(&text).unwrap();
     let passes: Vec<_> = r["passes"]
@@ -168,7 +174,7 @@ fn report_counts(out: &Path) -> serde_json::Value {
 }
 
 /// `read = written + rejected` per pass and for the day; the files hold `written` points.
-fn assert_counts_add_up(out: &Path) {
+pub fn assert_counts_add_up(out: &Path) {
     let text = std::fs::read_to_string(out.join("day.report.json")).unwrap();
     let r: serde_json::Value = serde_json::from_str(&text).unwrap();
     let add_up = |c: &serde_json::Value| {
@@ -384,12 +390,24 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
     simulated_day(d);
     let layout = "{ kind = \"per_pass\" }";
     let whole = day_file(d, "whole", "whole", layout, &three_passes());
+    let killed = day_file(d, "killed", "killed", layout, &three_passes());
+    // Early in the run: each killed run does at most about a quarter of the day, so the
+    // first three (at least) are still working when killed.
+    assert_kills_resume(&whole, &killed, (0.02, 0.25), 3);
+}
+
+/// Runs the day `whole` to its end, then the same day `killed` five times (each day file
+/// `<name>.toml` writing into `<name>/` beside it, as [`day_file`] makes them with `out` =
+/// `name`), each killed (SIGKILL or SIGTERM, alternately) after a seeded share in `window` of
+/// the uninterrupted run's time, and once more to its end: at least `interrupted` of the five
+/// runs were stopped, and the LAS files and counts are those of `whole`.
+pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), interrupted: usize) {
+    let out = |day: &Path| day.with_extension("");
     let started = Instant::now();
     ok(kinescan(&["day", whole.to_str().unwrap(), "-q"]));
     let run_s = started.elapsed().as_secs_f64();
-    let killed = day_file(d, "killed", "killed", layout, &three_passes());
     let mut rng = Lcg(14);
-    let mut interrupted = 0;
+    let mut stopped = 0;
     for k in 0..5 {
         let mut child = Command::new(env!("CARGO_BIN_EXE_kinescan"))
             .args(["day", killed.to_str().unwrap(), "-q"])
@@ -397,9 +415,9 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        // Early in the run: each killed run does at most about a quarter of the day, so the
-        // first three (at least) are still working when killed.
-        std::thread::sleep(Duration::from_secs_f64(rng.range(0.02, 0.25) * run_s));
+        std::thread::sleep(Duration::from_secs_f64(
+            rng.range(window.0, window.1) * run_s,
+        ));
         if k % 2 == 0 {
             child.kill().unwrap(); // SIGKILL
         } else {
@@ -407,25 +425,22 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
             Command::new("kill").args(["-TERM", &pid]).status().unwrap();
         }
         let status = child.wait().unwrap();
-        interrupted += usize::from(!status.success());
+        stopped += usize::from(!status.success());
     }
-    // A kill after the run ended interrupts nothing; the seeded delays must stop most runs.
+    // A kill after the run ended interrupts nothing; the seeded delays must stop enough runs.
     assert!(
-        interrupted >= 3,
-        "only {interrupted} of 5 runs were interrupted"
+        stopped >= interrupted,
+        "only {stopped} of 5 runs were interrupted"
     );
     ok(kinescan(&["day", killed.to_str().unwrap(), "-q"]));
-    let (a, b) = (las_files(&d.join("whole")), las_files(&d.join("killed")));
+    let (a, b) = (las_files(&out(whole)), las_files(&out(killed)));
     assert_eq!(a.len(), PASSES.len());
     assert!(
         a == b,
         "resumed output differs from the uninterrupted run's"
     );
-    assert_eq!(
-        report_counts(&d.join("whole")),
-        report_counts(&d.join("killed"))
-    );
-    assert_counts_add_up(&d.join("killed"));
+    assert_eq!(report_counts(&out(whole)), report_counts(&out(killed)));
+    assert_counts_add_up(&out(killed));
 }
 
 #[test]
@@ -467,54 +482,5 @@ fn bad_day_files_are_refused_before_any_work() {
             !planned && units == 0,
             "{name}: work started before the refusal"
         );
-    }
-}
-
-/// `[day.night] diagnose = true`: each pass diagnosed against the template's patches into
-/// `<out>/diagnosis_<pass>/`, the verdicts in the day report and the morning report.
-#[test]
-fn the_night_diagnoses_each_pass() {
-    let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    simulated_day(d);
-    let template = std::fs::read_to_string(d.join("template.toml")).unwrap();
-    std::fs::write(
-        d.join("template.toml"),
-        template + "[diagnose]\npatches = \"patches.csv\"\n",
-    )
-    .unwrap();
-    let day = day_file(
-        d,
-        "day",
-        "night",
-        "{ kind = \"per_pass\" }",
-        &three_passes(),
-    );
-    let text = std::fs::read_to_string(&day).unwrap();
-    // The night table before the first pass (TOML: after it would belong to the pass).
-    let text = text.replacen(
-        "\n[[passes]]",
-        "\n[day.night]\ndiagnose = true\n\n[[passes]]",
-        1,
-    );
-    std::fs::write(&day, text).unwrap();
-    let out = kinescan(&["day", day.to_str().unwrap(), "-q"]);
-    ok(out);
-    let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("night/day.report.json")).unwrap()).unwrap();
-    let diagnosis = report["diagnosis"].as_array().unwrap();
-    assert_eq!(diagnosis.len(), PASSES.len());
-    let md = std::fs::read_to_string(d.join("night/report.md")).unwrap();
-    for (k, pass) in PASSES.iter().enumerate() {
-        assert_eq!(diagnosis[k]["pass"], *pass);
-        let json = d.join(format!("night/diagnosis_{pass}/diagnosis.json"));
-        let own: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
-        let verdict = diagnosis[k]["verdict"].as_str().unwrap();
-        assert!(
-            !verdict.is_empty() && own["verdict"].is_string(),
-            "{verdict}"
-        );
-        assert!(md.contains(&format!("| {pass} | {verdict} |")), "{md}");
     }
 }

@@ -22,7 +22,8 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Writes the day's LAS files into `set`'s staging folders (compressed when the template's
-/// `output.format` says so) from the units `done` (every unit of `plan`); gives their
+/// `output.format` says so) from the unit files `done` (the one standing for each unit of
+/// `plan`: its own, or its corrected re-run's); gives their
 /// summaries (staged paths), in file-name order, and the sigma statistics.
 pub fn merge(
     day: &LoadedDay,
@@ -42,7 +43,7 @@ pub fn merge(
     let units_of = |pass: usize| plan.units.iter().filter(|u| u.pass == pass).count();
     let mut sink_settings = None;
     for unit in &plan.units {
-        let path = unit_path(out, &unit.id);
+        let path = unit_path(out, &done[&unit.id].unit);
         let pass = &day.config.passes[unit.pass].name;
         if day.config.day.layout == Layout::PerPass && units_of(unit.pass) == 1 {
             // The pass is this unit's file, byte for byte: staged by a hard link.

@@ -4,6 +4,7 @@
 
 use super::config::LoadedDay;
 use super::journal::{self, Entry, UnitDigest};
+use super::night::Correction;
 use super::plan::{pass_pipeline, Plan, Unit};
 use super::quality::{SigmaHistograms, SigmaOffsets};
 use crate::io::laz::map_las;
@@ -23,23 +24,35 @@ pub fn unit_path(out: &Path, id: &str) -> PathBuf {
     out.join("units").join(format!("{id}.las"))
 }
 
-/// Runs `unit` of `plan` on its prepared pass and journals it.
+/// Runs `unit` of `plan` on its prepared pass (re-processed with `correction` when given:
+/// `prepared` is then the corrected pipeline's) and journals it.
 pub fn run_unit(
     day: &LoadedDay,
     plan: &Plan,
     unit: &Unit,
+    correction: Option<&Correction>,
     prepared: &Prepared,
     opts: &RunOptions,
 ) -> Result<Entry> {
     let started = Instant::now();
     let out = &day.config.day.out;
-    let path = unit_path(out, &unit.id);
-    let p = pass_pipeline(day, unit.pass, &path);
+    let id = correction.map_or_else(|| unit.id.clone(), |k| k.unit_id(unit));
+    let path = unit_path(out, &id);
+    let (p, planned) = match correction {
+        None => (
+            pass_pipeline(day, unit.pass, &path),
+            plan.inputs[unit.input].clock,
+        ),
+        Some(k) => {
+            let mut p = k.pipeline.clone();
+            p.config.output.las = path.clone().into();
+            (p, k.clock(&plan.inputs[unit.input].clock))
+        }
+    };
     let c = &p.config;
-    let planned = &plan.inputs[unit.input];
     let first_of_pass = plan.inputs.iter().position(|i| i.pass == unit.pass);
     let input = &prepared.inputs[unit.input - first_of_pass.unwrap_or(0)];
-    let clock = planned.clock.applied_to(ResolvedClock::configured(c));
+    let clock = planned.applied_to(ResolvedClock::configured(c));
     let geo = ReturnGeoreferencer::new(
         &prepared.traj,
         &c.sensor,
@@ -87,7 +100,7 @@ pub fn run_unit(
         .ok_or_else(|| Error::bad_file(&path, "no file written"))?;
     let (map, layout) = map_las(&path)?;
     let entry = Entry {
-        unit: unit.id.clone(),
+        unit: id,
         sha256: digest.finish(&map[..layout.offset_to_points]),
         counts,
         seconds: started.elapsed().as_secs_f64(),
