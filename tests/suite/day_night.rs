@@ -11,6 +11,11 @@ use kinescan::sim::read_truth_points;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
 
+/// The injected effect: the sensor's true range zero is 3 cm beyond the template's.
+const RANGE_ZERO_ERROR: &str = "range_zero_error_m = 0.03";
+/// The `[day.night]` that applies the diagnosed corrections.
+const AUTO_CORRECT: &str = "diagnose = true\nauto_correct = true";
+
 /// The simulated day (with `effects` injected) and a template diagnosing against its patches.
 fn diagnosed_day(dir: &Path, effects: &str) {
     simulated_day_with(dir, effects);
@@ -124,10 +129,10 @@ fn truth_per_pass(dir: &Path) -> Vec<Vec<[f64; 3]>> {
 fn auto_correct_re_processes_a_pass_with_its_diagnosed_correction() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    diagnosed_day(d, "range_zero_error_m = 0.03");
+    diagnosed_day(d, RANGE_ZERO_ERROR);
     let plain = night_day(d, "plain", "diagnose = false");
     let reported = night_day(d, "reported", "diagnose = true");
-    let corrected = night_day(d, "corrected", "diagnose = true\nauto_correct = true");
+    let corrected = night_day(d, "corrected", AUTO_CORRECT);
     for day in [&plain, &reported, &corrected] {
         ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
     }
@@ -279,8 +284,8 @@ fn resume_to(day: &Path, expected: &[(String, Vec<u8>)]) {
 fn a_killed_auto_corrected_day_resumes_to_identical_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    diagnosed_day(d, "range_zero_error_m = 0.03");
-    let whole = night_day(d, "whole", "diagnose = true\nauto_correct = true");
-    let killed = night_day(d, "killed", "diagnose = true\nauto_correct = true");
+    diagnosed_day(d, RANGE_ZERO_ERROR);
+    let whole = night_day(d, "whole", AUTO_CORRECT);
+    let killed = night_day(d, "killed", AUTO_CORRECT);
     crate::day::assert_kills_resume(&whole, &killed, (0.3, 0.8), 1);
 }
