@@ -366,14 +366,26 @@ fn laz_case(dir: &Path, reps: usize) {
 
 /// `kinescan day` (the survey as one pass, per-pass layout: units, journal, merge) against
 /// `kinescan run` of the same pipeline, both on 2 threads, alternated: medians and the ratio.
+/// `KINESCAN_BENCH_DAY_TEMPLATE` names the pipeline (default `pipeline.toml`, no uncertainty;
+/// `uncertainty.toml` adds the sigmas and the day's sigma histograms), `KINESCAN_BENCH_DAY_UNIT_S`
+/// the work unit length (default 60 s: the pass is one unit; shorter: several units merged).
 fn day_case(dir: &Path, reps: usize) {
-    let day = "[day]\ntemplate = \"pipeline.toml\"\nout = \"night\"\n\
-               layout = { kind = \"per_pass\" }\n\n[[passes]]\nname = \"p\"\n\
-               profiles = [\"p.ksprof\"]\n";
+    let template =
+        std::env::var("KINESCAN_BENCH_DAY_TEMPLATE").unwrap_or_else(|_| "pipeline.toml".into());
+    let unit_s: f64 = std::env::var("KINESCAN_BENCH_DAY_UNIT_S")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(60.0);
+    let day = format!(
+        "[day]\ntemplate = \"{template}\"\nout = \"night\"\nunit_s = {unit_s:?}\n\
+         layout = {{ kind = \"per_pass\" }}\n\n[[passes]]\nname = \"p\"\n\
+         profiles = [\"p.ksprof\"]\n"
+    );
     std::fs::write(dir.join("day.toml"), day).unwrap();
     let (mut run_s, mut day_s) = (Vec::new(), Vec::new());
+    let mut steps: Vec<Vec<f64>> = vec![Vec::new(); 3];
     for _ in 0..reps {
-        run_s.push(run_once(dir, "pipeline.toml", 2).1);
+        run_s.push(run_once(dir, &template, 2).1);
         // A fresh night each time: with the previous journal the day would only re-merge.
         let _ = std::fs::remove_dir_all(dir.join("night"));
         let started = std::time::Instant::now();
@@ -384,12 +396,27 @@ fn day_case(dir: &Path, reps: usize) {
             .unwrap();
         assert!(status.success());
         day_s.push(started.elapsed().as_secs_f64());
+        let report = std::fs::read(dir.join("night/day.report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
+        for (k, step) in ["plan", "units", "merge"].iter().enumerate() {
+            steps[k].push(report["timings_s"][step].as_f64().unwrap());
+        }
     }
-    println!("day case, medians of {reps} alternated repetitions; [min-max] of the ratios");
+    let units = std::fs::read(dir.join("night/plan.json")).unwrap();
+    let units: serde_json::Value = serde_json::from_slice(&units).unwrap();
     println!(
-        "kinescan run {:.3} s, kinescan day {:.3} s: day / run {}",
+        "day case ({template}, {} unit(s)), medians of {reps} alternated repetitions; \
+         [min-max] of the ratios",
+        units["units"].as_array().unwrap().len()
+    );
+    println!(
+        "kinescan run {:.3} s, kinescan day {:.3} s (plan {:.3} s, units {:.3} s, merge {:.3} s): \
+         day / run {}",
         median(run_s.clone()),
         median(day_s.clone()),
+        median(steps[0].clone()),
+        median(steps[1].clone()),
+        median(steps[2].clone()),
         fmt_ratio(ratio_stats(&day_s, &run_s))
     );
 }

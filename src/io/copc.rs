@@ -59,10 +59,7 @@ type NodeKey = [u32; 4];
 /// `copc`, written atomically; nodes reached by at most `leaf_points` points are leaves (the
 /// pipeline uses [`LEAF_POINTS`]). Errors name the file.
 pub fn write_copc(las: &Path, copc: &Path, leaf_points: usize) -> Result<LazSummary> {
-    let file = std::fs::File::open(las).map_err(|e| Error::io(las, e))?;
-    // SAFETY: the file is our own finished output, not modified while mapped.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(las, e))?;
-    let layout = LasLayout::of(&map).map_err(|p| Error::bad_file(las, p))?;
+    let (map, layout) = super::laz::map_las(las)?;
     let bad = |p: String| Error::bad_file(las, p);
     let cube = Cube::of_header(&map);
     let nodes = nodes(&map, &layout, &cube, leaf_points);

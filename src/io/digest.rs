@@ -1,11 +1,9 @@
 //! Files identified by size and SHA-256 (for run reports).
 
-use super::profiles::ProfileFile;
 use crate::{Error, Result};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
 use std::io::Read;
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 /// A file read or written, identified by size and SHA-256.
@@ -48,20 +46,4 @@ impl FileRecord {
 /// Lower-case hex of `bytes`.
 pub fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
-}
-
-/// SHA-256 (hex) of a profile file's header and of the record ranges received, in order (the
-/// run's writer sends each chunk once written, so the hash runs beside the work); releases
-/// each range's pages once hashed (all of the file when every chunk was written).
-pub(crate) fn profile_sha256(
-    file: &ProfileFile,
-    ranges: std::sync::mpsc::Receiver<Range<usize>>,
-) -> String {
-    let mut hasher = Sha256::new();
-    hasher.update(file.header_bytes());
-    for r in ranges {
-        hasher.update(file.record_bytes(r.clone()));
-        file.release(r);
-    }
-    hex(&hasher.finalize())
 }

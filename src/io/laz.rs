@@ -49,10 +49,7 @@ pub struct LazSummary {
 /// Compresses the LAS 1.4 file `las` (as written by [`super::las::LasWriter`]: no EVLRs) into
 /// `laz`, written atomically. Errors name the file.
 pub fn compress_las(las: &Path, laz: &Path) -> Result<LazSummary> {
-    let file = std::fs::File::open(las).map_err(|e| Error::io(las, e))?;
-    // SAFETY: the file is our own finished output, not modified while mapped.
-    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(las, e))?;
-    let layout = LasLayout::of(&map).map_err(|p| Error::bad_file(las, p))?;
+    let (map, layout) = map_las(las)?;
     let vlr = laszip_vlr(&layout).map_err(|p| Error::bad_file(las, p))?;
     let mut vlr_data = Vec::new();
     vlr.write_to(&mut vlr_data).map_err(|e| Error::io(laz, e))?;
@@ -79,6 +76,17 @@ pub fn compress_las(las: &Path, laz: &Path) -> Result<LazSummary> {
         las_bytes: map.len() as u64,
         laz_bytes,
     })
+}
+
+/// The LAS 1.4 file `las` (one of this project's outputs) memory-mapped, with where its records
+/// are; errors name the file. An empty file is refused as not a LAS file.
+pub fn map_las(las: &Path) -> Result<(memmap2::Mmap, LasLayout)> {
+    let file = std::fs::File::open(las).map_err(|e| Error::io(las, e))?;
+    // SAFETY: the file is our own finished output (written atomically), not modified while
+    // mapped; a later run replaces it by rename, leaving this mapping's inode intact.
+    let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(las, e))?;
+    let layout = LasLayout::of(&map).map_err(|p| Error::bad_file(las, p))?;
+    Ok((map, layout))
 }
 
 /// Where the records of a LAS 1.4 file written by [`super::las::LasWriter`] are (what the

@@ -6,7 +6,7 @@
 //!
 //! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
 
-use super::atomic::{create_temp_dir, parent_dir, sync_dir};
+use super::atomic::{create_temp_dir, parent_dir, sync_dir, AtomicFile};
 use crate::{Error, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -40,6 +40,23 @@ impl OutputSet {
         let t = create_temp_dir(&dir, &self.label)?;
         let staged = t.path().join(name);
         self.staging.push((dir, t));
+        Ok(staged)
+    }
+
+    /// Stages the complete, durable file `from` (written with [`super::atomic::AtomicFile`])
+    /// as `final_path`'s content without copying it: a hard link in the staging folder, so
+    /// both names share the bytes on disk. Where the filesystem cannot link (`from` on another
+    /// filesystem, no hard links there) the bytes are copied (in the kernel where it can) into
+    /// an atomic file. `from` keeps its name and must not be changed afterwards.
+    pub fn stage_file(&mut self, final_path: &Path, from: &Path) -> Result<PathBuf> {
+        let staged = self.stage(final_path)?;
+        if std::fs::hard_link(from, &staged).is_ok() {
+            return Ok(staged);
+        }
+        let mut source = File::open(from).map_err(|e| Error::io(from, e))?;
+        let mut copy = AtomicFile::create(&staged)?;
+        std::io::copy(&mut source, copy.writer()).map_err(|e| Error::io(&staged, e))?;
+        copy.commit()?;
         Ok(staged)
     }
 
@@ -278,6 +295,65 @@ mod tests {
         assert_eq!(
             names(dir.path()),
             ["a.report.json", "a_0001.las", "a_0002.las"]
+        );
+    }
+
+    #[test]
+    fn a_staged_file_is_published_with_the_bytes_of_its_source_which_stays() {
+        let dir = tempfile::tempdir().unwrap();
+        let unit = dir.path().join("units").join("u.las");
+        crate::io::atomic::write_atomic(&unit, b"records").unwrap();
+        std::fs::write(dir.path().join("p.las"), b"old").unwrap();
+        let mut set = OutputSet::new("day");
+        let staged = set.stage_file(&dir.path().join("p.las"), &unit).unwrap();
+        assert_eq!(set.final_path(&staged), dir.path().join("p.las"));
+        assert_eq!(std::fs::read(dir.path().join("p.las")).unwrap(), b"old");
+        set.publish(&[]).unwrap();
+        assert_eq!(std::fs::read(dir.path().join("p.las")).unwrap(), b"records");
+        assert_eq!(std::fs::read(&unit).unwrap(), b"records");
+        assert_eq!(names(dir.path()), ["p.las", "units"]);
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::MetadataExt;
+            let links = std::fs::metadata(&unit).unwrap().nlink();
+            assert_eq!(links, 2, "linked, not copied");
+        }
+        // Staging it again over its own link publishes the same bytes.
+        let mut set = OutputSet::new("day");
+        set.stage_file(&dir.path().join("p.las"), &unit).unwrap();
+        set.publish(&[]).unwrap();
+        assert_eq!(std::fs::read(dir.path().join("p.las")).unwrap(), b"records");
+        assert_eq!(names(dir.path()), ["p.las", "units"]);
+        // A source that is not there is named.
+        let mut set = OutputSet::new("day");
+        let gone = dir.path().join("units").join("gone.las");
+        let e = set
+            .stage_file(&dir.path().join("q.las"), &gone)
+            .unwrap_err();
+        assert!(e.to_string().contains("gone.las"), "{e}");
+    }
+
+    /// A source on another filesystem (tmpfs /dev/shm against the temporary folder's) cannot
+    /// be linked: its bytes are copied into the staging folder instead.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn a_file_from_another_filesystem_is_staged_by_a_copy() {
+        use std::os::unix::fs::MetadataExt;
+        let shm = tempfile::tempdir_in("/dev/shm").unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let dev = |p: &Path| std::fs::metadata(p).unwrap().dev();
+        assert_ne!(dev(shm.path()), dev(dir.path()), "needs two filesystems");
+        let unit = shm.path().join("u.las");
+        std::fs::write(&unit, b"records").unwrap();
+        let mut set = OutputSet::new("day");
+        set.stage_file(&dir.path().join("p.las"), &unit).unwrap();
+        set.publish(&[]).unwrap();
+        assert_eq!(std::fs::read(dir.path().join("p.las")).unwrap(), b"records");
+        assert_eq!(names(dir.path()), ["p.las"]);
+        assert_eq!(
+            std::fs::metadata(&unit).unwrap().nlink(),
+            1,
+            "copied, not linked"
         );
     }
 

@@ -9,11 +9,12 @@ use super::report::{FileRecord, InputReport, RejectReason, ReturnCounts};
 use super::schema::PointFill;
 use super::write::{encode_error, LasSink};
 use crate::io::counters::CounterTracker;
-use crate::io::digest::profile_sha256;
+use crate::io::digest::hex;
 use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
 use crate::io::profiles::ProfileFile;
 use crate::{Error, Result};
 use rayon::prelude::*;
+use sha2::{Digest, Sha256};
 use std::ops::Range;
 
 /// Points encoded at a time (keeps the per-thread point buffer in cache).
@@ -132,10 +133,20 @@ impl BufferPool {
 /// A batch of chunk results, in input order.
 type Batch = Vec<(Range<usize>, Result<ChunkOut>)>;
 
-/// Chunks written but not yet hashed: bounds the mapped input pages still resident.
-const HASH_QUEUE_CHUNKS: usize = 16;
+/// Chunks written but not yet tapped: bounds the mapped input pages still resident.
+const TAP_QUEUE_CHUNKS: usize = 16;
 
-/// Georeferences one profile file into `sink` ([`process_records`] over every record).
+/// What the third thread of a pass over a profile file does with each chunk once written.
+pub enum Tap<'a> {
+    /// Hashes the profile file as read (its header, then the records processed): the input's
+    /// SHA-256 in the run report.
+    HashInput,
+    /// Hands each chunk's encoded LAS records, in output order, to this function (a day's work
+    /// unit digests its output and fills its sigma histograms there); the input is not hashed.
+    Records(&'a mut (dyn FnMut(&[u8]) + Send)),
+}
+
+/// Georeferences one profile file into `sink`, hashing it for the report.
 pub fn process_input(
     geo: &ReturnGeoreferencer,
     fill: &PointFill,
@@ -146,15 +157,22 @@ pub fn process_input(
     bar: &indicatif::ProgressBar,
 ) -> Result<InputReport> {
     let all = 0..input.file.len();
-    process_records(geo, fill, input, all, opts, strictness, sink, bar)
+    let (acc, sha256) = execute(
+        geo,
+        fill,
+        input,
+        all,
+        opts,
+        strictness,
+        sink,
+        bar,
+        Tap::HashInput,
+    )?;
+    acc.finish(input, sha256.unwrap_or_default())
 }
 
-/// Georeferences the records `records` of one profile file into `sink`. Batches of chunks are
-/// computed in parallel on the pool while a writer thread absorbs the previous batch (counts,
-/// checks, LAS), so writing overlaps computing; results are absorbed strictly in input order.
-/// A third thread hashes the written chunks' input bytes (the report's SHA-256: the file
-/// header and the records processed) and releases their pages, so the hash is off the
-/// writer's path.
+/// Georeferences the records `records` of one profile file into `sink` (a day's work unit),
+/// handing the encoded records to `on_records` as they are written; gives the returns' counts.
 #[allow(clippy::too_many_arguments)]
 pub fn process_records(
     geo: &ReturnGeoreferencer,
@@ -164,8 +182,34 @@ pub fn process_records(
     opts: &super::RunOptions,
     strictness: Strictness,
     sink: &mut LasSink,
+    on_records: &mut (dyn FnMut(&[u8]) + Send),
+) -> Result<ReturnCounts> {
+    let hidden = indicatif::ProgressBar::hidden();
+    let tap = Tap::Records(on_records);
+    let (acc, _) = execute(
+        geo, fill, input, records, opts, strictness, sink, &hidden, tap,
+    )?;
+    Ok(acc.counts)
+}
+
+/// Georeferences the records `records` of one profile file into `sink`. Batches of chunks are
+/// computed in parallel on the pool while a writer thread absorbs the previous batch (counts,
+/// checks, LAS), so writing overlaps computing; results are absorbed strictly in input order.
+/// A third thread does `tap`'s work on the written chunks (the input's SHA-256, or the
+/// caller's use of the records) and releases their input pages, so it is off the writer's
+/// path. Gives the writer's account and the input's SHA-256 (with [`Tap::HashInput`]).
+#[allow(clippy::too_many_arguments)]
+fn execute<'f>(
+    geo: &ReturnGeoreferencer,
+    fill: &PointFill,
+    input: &'f PreparedInput,
+    records: Range<usize>,
+    opts: &super::RunOptions,
+    strictness: Strictness,
+    sink: &mut LasSink,
     bar: &indicatif::ProgressBar,
-) -> Result<InputReport> {
+    tap: Tap,
+) -> Result<(FileAccumulator<'f>, Option<String>)> {
     let file = &input.file;
     let n = records.end.min(file.len());
     let chunk_len = opts.chunk_returns.max(1);
@@ -174,15 +218,22 @@ pub fn process_records(
     let (tx, rx) = std::sync::mpsc::sync_channel::<Batch>(1);
     let mut acc = FileAccumulator::new(file, strictness);
     let pool = BufferPool::default();
-    let (hash_tx, hash_rx) = std::sync::mpsc::sync_channel::<Range<usize>>(HASH_QUEUE_CHUNKS);
+    let keep_records = matches!(tap, Tap::Records(_));
+    let (tap_tx, tap_rx) = std::sync::mpsc::sync_channel::<Written>(TAP_QUEUE_CHUNKS);
     let sha256 = std::thread::scope(|scope| {
-        let hasher = scope.spawn(|| profile_sha256(file, hash_rx));
+        let tapper = scope.spawn(|| run_tap(file, tap, tap_rx, &pool));
         let writer = scope.spawn(|| -> Result<()> {
-            let hash_tx = hash_tx; // moved in: dropping it ends the hasher
+            let tap_tx = tap_tx; // moved in: dropping it ends the tap
             for batch in rx {
                 for (r, out) in batch {
-                    pool.give(acc.absorb(r.clone(), out, sink, bar)?);
-                    let _ = hash_tx.send(r); // the hasher stops only with the run
+                    let records = acc.absorb(r.clone(), out, sink, bar)?;
+                    let records = if keep_records {
+                        Some(records)
+                    } else {
+                        pool.give(records);
+                        None
+                    };
+                    let _ = tap_tx.send((r, records)); // the tap stops only with the run
                 }
             }
             Ok(())
@@ -203,9 +254,39 @@ pub fn process_records(
         }
         drop(tx);
         writer.join().expect("writer thread panicked")?;
-        Ok::<_, Error>(hasher.join().expect("hasher thread panicked"))
+        Ok::<_, Error>(tapper.join().expect("tap thread panicked"))
     })?;
-    acc.finish(input, sha256)
+    Ok((acc, sha256))
+}
+
+/// A chunk written: its input records, and its encoded LAS records when the tap takes them.
+type Written = (Range<usize>, Option<Vec<u8>>);
+
+/// The tap's thread: per written chunk, in order, `tap`'s work, then the chunk's input pages
+/// released and its record buffer given back. Gives the input's SHA-256 (hex) with
+/// [`Tap::HashInput`].
+fn run_tap(
+    file: &ProfileFile,
+    mut tap: Tap,
+    chunks: std::sync::mpsc::Receiver<Written>,
+    pool: &BufferPool,
+) -> Option<String> {
+    let mut hasher = matches!(tap, Tap::HashInput).then(|| {
+        let mut h = Sha256::new();
+        h.update(file.header_bytes());
+        h
+    });
+    for (r, records) in chunks {
+        if let Some(h) = &mut hasher {
+            h.update(file.record_bytes(r.clone()));
+        }
+        if let (Tap::Records(on_records), Some(records)) = (&mut tap, records) {
+            on_records(&records);
+            pool.give(records);
+        }
+        file.release(r);
+    }
+    hasher.map(|h| hex(&h.finalize()))
 }
 
 /// What the writer side learns about one profile file.

@@ -46,10 +46,11 @@ pub struct Prepared {
     _staging: tempfile::TempDir,
 }
 
-/// Opens every input of a run; imports CSV profile files beside the output.
+/// Opens every input of a run and hashes the pipeline, trajectory and geoid files for its
+/// report; imports CSV profile files beside the output.
 pub fn run(p: &LoadedPipeline) -> Result<Prepared> {
+    let prepared = open(p)?;
     let c = &p.config;
-    let traj = open_trajectory(c)?;
     let mut files = vec![
         FileRecord::of("pipeline", &p.path)?,
         FileRecord::of("sbet", &c.inputs.sbet)?,
@@ -57,12 +58,19 @@ pub fn run(p: &LoadedPipeline) -> Result<Prepared> {
     if let Some(s) = &c.inputs.smrmsg {
         files.push(FileRecord::of("smrmsg", s)?);
     }
-    let frame = map_frame(&c.output.frame, &traj)?;
-    check_frame_near_data(p, &frame, &traj)?;
-    let geoid = open_geoid(p, &traj)?;
     if let Some(g) = &c.output.geoid {
         files.push(FileRecord::of("geoid", g)?);
     }
+    Ok(Prepared { files, ..prepared })
+}
+
+/// [`run`] without hashing any file (`files` empty): a day's passes, whose report lists none.
+pub fn open(p: &LoadedPipeline) -> Result<Prepared> {
+    let c = &p.config;
+    let traj = open_trajectory(c)?;
+    let frame = map_frame(&c.output.frame, &traj)?;
+    check_frame_near_data(p, &frame, &traj)?;
+    let geoid = open_geoid(p, &traj)?;
     let out_dir = c
         .output
         .las
@@ -77,7 +85,7 @@ pub fn run(p: &LoadedPipeline) -> Result<Prepared> {
         frame,
         geoid,
         inputs,
-        files,
+        files: Vec::new(),
         out_dir,
         _staging: staging,
     })

@@ -14,6 +14,7 @@ mod cli;
 mod config_files;
 mod copc_output;
 mod day;
+mod day_night;
 mod diagnose;
 mod diagnose_acceptance;
 mod epsg_frames;

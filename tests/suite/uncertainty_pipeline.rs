@@ -130,52 +130,6 @@ fn quiet() -> RunOptions {
     }
 }
 
-/// Extra dimension names and per-point f32 values of a LAS file.
-fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
-    let mut reader = las::Reader::from_path(path).unwrap();
-    // (name, size): float32 (data_type 9) or a scaled fraction byte (data_type 1).
-    let dims: Vec<(String, usize)> = reader
-        .header()
-        .all_vlrs()
-        .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
-        .map(|v| {
-            v.data
-                .chunks(192)
-                .map(|d| {
-                    let name = String::from_utf8_lossy(&d[4..36]);
-                    let name = name.trim_end_matches('\0');
-                    let size = match d[2] {
-                        1 => 1,
-                        9 => 4,
-                        t => panic!("data_type {t}"),
-                    };
-                    (name.to_string(), size)
-                })
-                .collect()
-        })
-        .unwrap();
-    let values = reader
-        .read_all()
-        .unwrap()
-        .points()
-        .map(|p| {
-            let bytes = p.unwrap().extra_bytes;
-            let mut at = 0;
-            dims.iter()
-                .map(|(_, size)| {
-                    let b = &bytes[at..at + size];
-                    at += size;
-                    match size {
-                        1 => (f64::from(b[0]) * FRACTION_SCALE) as f32,
-                        _ => f32::from_le_bytes(b.try_into().unwrap()),
-                    }
-                })
-                .collect()
-        })
-        .collect();
-    (dims.into_iter().map(|d| d.0).collect(), values)
-}
-
 /// With INS sigmas only, the position sigma passes straight to the point: sigma_z = down
 /// sigma (0.04 m) and the horizontal sigma = sqrt(2) 0.02 m times the UTM scale factor
 /// (|k - 1| <= 4e-4 near a central meridian), all variance in the INS groups.

@@ -70,7 +70,8 @@ pub struct NightOptions {
     /// Run the diagnosis on each pass (needs the template's `[diagnose]`).
     #[serde(default)]
     pub diagnose: bool,
-    /// Re-run a pass with a significant diagnosed correction (otherwise it is reported).
+    /// Re-process a pass whose diagnosis names an effect with its correction, replacing the
+    /// pass's output (otherwise the correction is reported); needs `diagnose`.
     #[serde(default)]
     pub auto_correct: bool,
 }
@@ -157,9 +158,8 @@ fn check(c: &DayConfig) -> std::result::Result<(), (String, String)> {
             return Err(("day.layout.size_m".into(), problem));
         }
     }
-    if d.night.auto_correct {
-        let problem = "not wired into `kinescan day` yet: set it to false (the morning report \
-                       gives each pass's correction) and re-run the pass with it";
+    if d.night.auto_correct && !d.night.diagnose {
+        let problem = "needs day.night.diagnose = true: the correction is the night's diagnosis'";
         return Err(("day.night.auto_correct".into(), problem.into()));
     }
     if c.passes.is_empty() {

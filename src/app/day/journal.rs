@@ -1,9 +1,13 @@
 //! The journal of a day: `<out>/journal.jsonl`, one JSON line per finished work unit (its
-//! output file, that file's SHA-256 and the unit's return counts), appended and fsynced after
-//! the unit's output was renamed into place. A restart trusts a line only when the unit's file
-//! is there with the same hash; anything else is done again.
+//! output file's digest and summary, the unit's return counts and sigma histograms), appended
+//! and fsynced after the unit's output was renamed into place. A restart trusts a line only
+//! when the unit's file is there with the same digest; anything else is done again.
 
+use super::quality::SigmaHistograms;
 use crate::io::atomic::append_line_durably;
+use crate::io::digest::hex;
+use crate::io::las::LasSummary;
+use crate::io::laz::map_las;
 use crate::pipeline::report::ReturnCounts;
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -16,12 +20,16 @@ use std::path::Path;
 pub struct Entry {
     /// Unit id (plan).
     pub unit: String,
-    /// SHA-256 of its output file, hex.
+    /// [`UnitDigest`] of its output file, hex.
     pub sha256: String,
     /// Its returns read, written and rejected by reason.
     pub counts: ReturnCounts,
     /// Seconds it took.
     pub seconds: f64,
+    /// Its output file (points, bounds, size).
+    pub las: LasSummary,
+    /// Histograms of its points' sigmas (empty without `[uncertainty]`).
+    pub sigma: SigmaHistograms,
 }
 
 /// Appends `entry` to the journal at `path`.
@@ -49,8 +57,29 @@ pub fn read(path: &Path) -> Result<BTreeMap<String, Entry>> {
     Ok(entries)
 }
 
-/// SHA-256 of the file at `path`, hex; none when it cannot be read.
-pub fn file_sha256(path: &Path) -> Option<String> {
-    let bytes = std::fs::read(path).ok()?;
-    Some(crate::io::digest::hex(&Sha256::digest(&bytes)))
+/// The SHA-256 of a unit's output file that the journal holds: its point records, then its
+/// header and VLRs. A unit hashes the records as they are written (off the writer's path) and
+/// the header once the file is complete, so the file is not read again.
+#[derive(Default)]
+pub struct UnitDigest(Sha256);
+
+impl UnitDigest {
+    /// Adds point records, in file order.
+    pub fn records(&mut self, bytes: &[u8]) {
+        self.0.update(bytes);
+    }
+
+    /// The digest (hex), `head` being the file's bytes before its first point record.
+    pub fn finish(mut self, head: &[u8]) -> String {
+        self.0.update(head);
+        hex(&self.0.finalize())
+    }
+}
+
+/// [`UnitDigest`] of the unit file at `path`; none when it cannot be read as a LAS file.
+pub fn file_digest(path: &Path) -> Option<String> {
+    let (map, layout) = map_las(path).ok()?;
+    let mut digest = UnitDigest::default();
+    digest.records(&map[layout.offset_to_points..]);
+    Some(digest.finish(&map[..layout.offset_to_points]))
 }

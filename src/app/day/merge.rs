@@ -1,58 +1,77 @@
 //! The day's outputs merged from the unit outputs, in plan order (so the bytes do not depend
-//! on the order units finished): one LAS per pass, or one per tile of the output frame. Every
-//! file goes through a [`LasSink`] into a staging folder ([`OutputSet`]).
+//! on the order units finished): one LAS per pass, or one per tile of the output frame, staged
+//! in an [`OutputSet`]. A pass that is one unit is its unit's file, staged without a copy
+//! ([`OutputSet::stage_file`]); every other file goes through a [`LasSink`]. The sigma
+//! statistics per pass come from the units' journalled histograms, per tile from the records
+//! as they are split.
 
 use super::config::{Layout, LoadedDay};
+use super::journal::Entry;
 use super::plan::{pass_pipeline, Plan};
 use super::quality::{SigmaHistograms, SigmaOffsets, SigmaStats};
 use super::units::unit_path;
 use crate::io::las::{stats_of_records, LasSummary};
-use crate::io::laz::LasLayout;
+use crate::io::laz::map_las;
 use crate::io::publish::OutputSet;
 use crate::pipeline::prepare::{map_frame, open_geoid, open_trajectory};
 use crate::pipeline::schema::OutputSchema;
 use crate::pipeline::write::{into_format, LasSink, SinkSettings};
-use crate::{Error, Result};
+use crate::Result;
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 /// Writes the day's LAS files into `set`'s staging folders (compressed when the template's
-/// `output.format` says so); gives their summaries (staged paths), in file-name order.
+/// `output.format` says so) from the unit files `done` (the one standing for each unit of
+/// `plan`: its own, or its corrected re-run's); gives their
+/// summaries (staged paths), in file-name order, and the sigma statistics.
 pub fn merge(
     day: &LoadedDay,
     plan: &Plan,
+    done: &BTreeMap<String, Entry>,
     set: &mut OutputSet,
 ) -> Result<(Vec<LasSummary>, Vec<SigmaStats>)> {
     let out = &day.config.day.out;
-    let mut sinks: BTreeMap<PathBuf, LasSink> = BTreeMap::new();
     let mut by_pass = vec![SigmaHistograms::default(); day.config.passes.len()];
+    for unit in &plan.units {
+        by_pass[unit.pass].merge(&done[&unit.id].sigma);
+    }
+    let mut summaries = Vec::new();
+    let mut sinks: BTreeMap<PathBuf, LasSink> = BTreeMap::new();
     let mut tile_sigma: BTreeMap<String, SigmaHistograms> = BTreeMap::new();
     let offsets = SigmaOffsets::of(&OutputSchema::new(&day.template.config));
-    let first = pass_pipeline(day, 0, &out.join("x.las"));
-    let traj = open_trajectory(&first.config)?;
-    let frame = map_frame(&first.config.output.frame, &traj)?;
-    let geoid = open_geoid(&first, &traj)?;
+    let units_of = |pass: usize| plan.units.iter().filter(|u| u.pass == pass).count();
+    let mut sink_settings = None;
     for unit in &plan.units {
-        let path = unit_path(out, &unit.id);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-        let layout = LasLayout::of(&bytes).map_err(|p| Error::bad_file(&path, p))?;
-        let records = &bytes[layout.offset_to_points..];
+        let path = unit_path(out, &done[&unit.id].unit);
         let pass = &day.config.passes[unit.pass].name;
-        if let Some(at) = offsets {
-            by_pass[unit.pass].add_records(records, layout.record_len, at);
+        if day.config.day.layout == Layout::PerPass && units_of(unit.pass) == 1 {
+            // The pass is this unit's file, byte for byte: staged by a hard link.
+            let staged = set.stage_file(&out.join(format!("{pass}.las")), &path)?;
+            let las = done[&unit.id].las.clone();
+            summaries.push(LasSummary {
+                path: staged,
+                ..las
+            });
+            continue;
         }
+        let (map, layout) = map_las(&path)?;
+        let records = &map[layout.offset_to_points..];
         let groups: Vec<(String, Cow<[u8]>)> = match day.config.day.layout {
             Layout::PerPass => vec![(format!("{pass}.las"), Cow::Borrowed(records))],
-            Layout::Tiles { size_m } => by_tile(records, &bytes, layout.record_len, size_m),
+            Layout::Tiles { size_m } => by_tile(records, &map, layout.record_len, size_m),
         };
         for (name, part) in groups {
             let part = &*part;
             let staged = set.stage(&out.join(&name))?;
             if !sinks.contains_key(&staged) {
+                if sink_settings.is_none() {
+                    sink_settings = Some(SinkFrame::open(day)?);
+                }
+                let f = sink_settings.as_ref().expect("opened above");
                 let c = pass_pipeline(day, unit.pass, &staged).config;
                 let schema = OutputSchema::new(&c);
-                let settings = SinkSettings::new(&c, &schema, &frame, geoid.as_ref(), &traj)?;
+                let settings = SinkSettings::new(&c, &schema, &f.frame, f.geoid.as_ref(), &f.traj)?;
                 sinks.insert(staged.clone(), LasSink::new(settings));
             }
             if let (Some(at), Layout::Tiles { .. }) = (offsets, &day.config.day.layout) {
@@ -64,10 +83,10 @@ pub fn merge(
             sink.write(part, &stats_of_records(part, sink.layout()))?;
         }
     }
-    let mut summaries = Vec::new();
     for (_, sink) in sinks {
         summaries.extend(sink.finish()?);
     }
+    summaries.sort_by(|a, b| a.path.cmp(&b.path));
     let passes = day.config.passes.iter().zip(&by_pass);
     let mut sigma: Vec<SigmaStats> = passes
         .map(|(p, h)| h.stats(&format!("pass {}", p.name)))
@@ -78,6 +97,23 @@ pub fn merge(
     }
     let summaries = into_format(day.template.config.output.format, summaries)?;
     Ok((summaries, sigma))
+}
+
+/// What a merged file's header is made from (the frame and offset of `kinescan run`'s).
+struct SinkFrame {
+    traj: crate::trajectory::Trajectory,
+    frame: crate::geo::projection::MapFrame,
+    geoid: Option<crate::geo::geoid::GeoidGrid>,
+}
+
+impl SinkFrame {
+    fn open(day: &LoadedDay) -> Result<Self> {
+        let first = pass_pipeline(day, 0, &day.config.day.out.join("x.las"));
+        let traj = open_trajectory(&first.config)?;
+        let frame = map_frame(&first.config.output.frame, &traj)?;
+        let geoid = open_geoid(&first, &traj)?;
+        Ok(SinkFrame { traj, frame, geoid })
+    }
 }
 
 /// The records of a unit grouped by tile (`tile_<E>_<N>.las`, lower-left corner in m, tiles

@@ -109,7 +109,11 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
     }
     let mut timings = BTreeMap::new();
     let started = Instant::now();
-    let (plan, mut prepared) = plan_day(&day, !matches!(step, Step::Unit(_)), opts)?;
+    let (plan, prepared) = plan_day(&day, !matches!(step, Step::Unit(_)), opts)?;
+    let mut prepared: Vec<Option<Prepared>> = match prepared {
+        Some(all) => all.into_iter().map(Some).collect(),
+        None => day.config.passes.iter().map(|_| None).collect(),
+    };
     let opts = &RunOptions {
         chunk_returns: plan.chunk_returns,
         ..opts.clone()
@@ -134,28 +138,81 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             continue;
         }
         crate::interrupt::check()?;
-        if prepared.is_empty() {
-            prepared = plan::prepare_passes(&day)?;
-        }
-        let entry = units::run_unit(&day, &plan, unit, &prepared[unit.pass], opts)?;
+        let pass = match &mut prepared[unit.pass] {
+            Some(p) => p,
+            slot => slot.insert(plan::prepare_pass(&day, unit.pass)?),
+        };
+        let entry = units::run_unit(&day, &plan, unit, None, pass, opts)?;
         done.insert(unit.id.clone(), entry);
     }
     timings.insert("units".to_string(), started.elapsed().as_secs_f64());
     if matches!(step, Step::Unit(_)) {
         return Ok(None);
     }
+    check_all_done(&day, &plan, &done)?;
     let started = Instant::now();
-    let report = publish(&day, &plan, &done, resumed, timings, started)?;
+    let diagnosis = night::diagnosis(&day, &plan)?;
+    if day.config.day.night.diagnose {
+        timings.insert("diagnose".to_string(), started.elapsed().as_secs_f64());
+    }
+    let started = Instant::now();
+    if correct_passes(&day, &plan, &diagnosis, &mut done, opts)? {
+        let seconds = started.elapsed().as_secs_f64();
+        timings.insert("corrected_units".to_string(), seconds);
+    }
+    let started = Instant::now();
+    let report = publish(&day, &plan, &done, resumed, timings, diagnosis, started)?;
     Ok(Some(report))
 }
 
+/// Re-processes the passes whose diagnosed correction the night applies: every unit of such a
+/// pass runs again with the correction (unless the journal has it done) and stands for the
+/// plan's unit in `done`. Whether a pass was corrected.
+fn correct_passes(
+    day: &LoadedDay,
+    plan: &Plan,
+    diagnosis: &[night::PassDiagnosis],
+    done: &mut BTreeMap<String, Entry>,
+    opts: &RunOptions,
+) -> Result<bool> {
+    let out = &day.config.day.out;
+    let journalled = journal::read(&out.join("journal.jsonl"))?;
+    let mut corrected = false;
+    for d in diagnosis {
+        let Some(k) = night::Correction::of(day, plan, d)? else {
+            continue;
+        };
+        corrected = true;
+        let mut prepared = None;
+        for unit in plan.units.iter().filter(|u| u.pass == k.pass) {
+            let entry = match verified(out, &journalled, &k.unit_id(unit)) {
+                Some(e) => e,
+                None => {
+                    crate::interrupt::check()?;
+                    let pass = match &mut prepared {
+                        Some(p) => p,
+                        slot => slot.insert(crate::pipeline::prepare::open(&k.pipeline)?),
+                    };
+                    units::run_unit(day, plan, unit, Some(&k), pass, opts)?
+                }
+            };
+            done.insert(unit.id.clone(), entry);
+        }
+    }
+    Ok(corrected)
+}
+
 /// The plan read back, or made (passes prepared and checked first) when `may_plan`; the
-/// prepared passes when they were needed.
-fn plan_day(day: &LoadedDay, may_plan: bool, opts: &RunOptions) -> Result<(Plan, Vec<Prepared>)> {
+/// prepared passes when they were needed to make it.
+fn plan_day(
+    day: &LoadedDay,
+    may_plan: bool,
+    opts: &RunOptions,
+) -> Result<(Plan, Option<Vec<Prepared>>)> {
     let plan_path = day.config.day.out.join("plan.json");
     let fingerprint = plan::fingerprint(day)?;
     if let Some(p) = plan::read_existing(&plan_path, &fingerprint)? {
-        return Ok((p, Vec::new()));
+        return Ok((p, None));
     }
     if !may_plan {
         let problem = "no plan: run `kinescan day DAY.toml --plan` first";
@@ -165,29 +222,29 @@ fn plan_day(day: &LoadedDay, may_plan: bool, opts: &RunOptions) -> Result<(Plan,
     plan::check_passes(day, &prepared)?;
     let (p, _sync_reports) = plan::make(day, &prepared, fingerprint, opts.chunk_returns.max(1))?;
     write_json(&plan_path, &p)?;
-    Ok((p, prepared))
+    Ok((p, Some(prepared)))
 }
 
-/// The journal's units whose output file is there with the journalled hash.
+/// The plan's units done: in the journal, their file there with the journalled digest.
 fn finished_units(day: &LoadedDay, plan: &Plan) -> Result<BTreeMap<String, Entry>> {
     let out = &day.config.day.out;
-    let mut entries = journal::read(&out.join("journal.jsonl"))?;
-    entries.retain(|id, e| {
-        plan.units.iter().any(|u| &u.id == id)
-            && journal::file_sha256(&units::unit_path(out, id)).as_ref() == Some(&e.sha256)
+    let journalled = journal::read(&out.join("journal.jsonl"))?;
+    let done = plan.units.iter().filter_map(|u| {
+        let entry = verified(out, &journalled, &u.id)?;
+        Some((u.id.clone(), entry))
     });
-    Ok(entries)
+    Ok(done.collect())
 }
 
-/// Merges, checks the counts add up, writes the report and publishes the set.
-fn publish(
-    day: &LoadedDay,
-    plan: &Plan,
-    done: &BTreeMap<String, Entry>,
-    resumed: usize,
-    mut timings: BTreeMap<String, f64>,
-    started: Instant,
-) -> Result<DayReport> {
+/// The journal's entry of unit `id` when its file is there with the journalled digest.
+fn verified(out: &Path, journalled: &BTreeMap<String, Entry>, id: &str) -> Option<Entry> {
+    let e = journalled.get(id)?;
+    let digest = journal::file_digest(&units::unit_path(out, id))?;
+    (digest == e.sha256).then(|| e.clone())
+}
+
+/// Refuses to go on (diagnose, merge) before every unit of the plan is done.
+fn check_all_done(day: &LoadedDay, plan: &Plan, done: &BTreeMap<String, Entry>) -> Result<()> {
     let missing: Vec<&str> = plan
         .units
         .iter()
@@ -201,14 +258,29 @@ fn publish(
             problem,
         ));
     }
+    Ok(())
+}
+
+/// Merges, checks the counts add up, writes the report and publishes the set. `done` holds,
+/// per unit of the plan, the entry of the unit file that stands for it (the plan's unit, or
+/// its corrected re-run).
+fn publish(
+    day: &LoadedDay,
+    plan: &Plan,
+    done: &BTreeMap<String, Entry>,
+    resumed: usize,
+    mut timings: BTreeMap<String, f64>,
+    diagnosis: Vec<night::PassDiagnosis>,
+    started: Instant,
+) -> Result<DayReport> {
     let out = day.config.day.out.to_path_buf();
     let report_path = out.join("day.report.json");
     let previous = previous_outputs(&report_path);
     let mut set = OutputSet::new("day");
-    let result = merge::merge(day, plan, &mut set).and_then(|(summaries, sigma)| {
+    let result = merge::merge(day, plan, done, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
         report.sigma = sigma;
-        report.diagnosis = night::diagnose_passes(day, plan)?;
+        report.diagnosis = diagnosis;
         timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
         report.timings_s = timings;
         write_json(&set.stage(&report_path)?, &report)?;

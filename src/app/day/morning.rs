@@ -127,11 +127,24 @@ fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
         }
     }
     for d in r.diagnosis.iter().filter(|d| !d.set.is_empty()) {
-        w.push(format!(
-            "pass {}: the diagnosis names a correction, not applied: {}",
-            d.pass,
-            d.set.join(" ")
-        ));
+        match &d.applied {
+            None => w.push(format!(
+                "pass {}: the diagnosis names a correction, not applied: {}",
+                d.pass,
+                d.set.join(" ")
+            )),
+            Some(a) => w.push(format!(
+                "pass {}: re-processed with the diagnosed correction {} ({}; held-out chi2/dof \
+                 {:.2} -> {:.2}, RMS {:.1} -> {:.1} mm)",
+                d.pass,
+                d.set.join(" "),
+                estimates(a),
+                d.chi2_per_dof[0],
+                d.chi2_per_dof[1],
+                d.rms_m[0] * 1e3,
+                d.rms_m[1] * 1e3
+            )),
+        }
     }
     if r.sigma.is_empty() {
         w.push("no per-point sigma: the template has no [uncertainty]".into());
@@ -264,6 +277,12 @@ fn diagnosis(r: &DayReport) -> Vec<Vec<String>> {
         let off = "not run (day.night.diagnose = false)".to_string();
         return vec![vec!["verdict".into()], vec![off]];
     }
+    let applies = r.diagnosis.iter().any(|d| d.applied.is_some());
+    let correction = if applies {
+        "correction"
+    } else {
+        "correction (not applied)"
+    };
     let head = [
         "pass",
         "verdict",
@@ -271,10 +290,16 @@ fn diagnosis(r: &DayReport) -> Vec<Vec<String>> {
         "after",
         "RMS before (mm)",
         "after (mm)",
-        "correction (not applied)",
+        correction,
     ];
     let mut t = vec![head.map(String::from).to_vec()];
     for d in &r.diagnosis {
+        let set = d.set.join(" ");
+        let correction = match (&d.applied, applies && !set.is_empty()) {
+            (Some(a), _) => format!("applied: {set} ({})", estimates(a)),
+            (None, true) => format!("not applied: {set}"),
+            (None, false) => set,
+        };
         t.push(vec![
             d.pass.clone(),
             d.verdict.clone(),
@@ -282,10 +307,20 @@ fn diagnosis(r: &DayReport) -> Vec<Vec<String>> {
             format!("{:.2}", d.chi2_per_dof[1]),
             format!("{:.1}", d.rms_m[0] * 1e3),
             format!("{:.1}", d.rms_m[1] * 1e3),
-            d.set.join(" "),
+            correction,
         ]);
     }
     t
+}
+
+/// The named effects of an applied correction, `name = estimate +- sigma` each.
+fn estimates(a: &super::night::AppliedCorrection) -> String {
+    let named: Vec<String> = a
+        .effects
+        .iter()
+        .map(|e| format!("{} = {:.4e} +- {:.1e}", e.effect, e.estimate, e.sigma))
+        .collect();
+    named.join(", ")
 }
 
 fn timings(r: &DayReport) -> Vec<Vec<String>> {

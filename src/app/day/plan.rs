@@ -320,12 +320,18 @@ pub fn fingerprint(day: &LoadedDay) -> Result<String> {
     Ok(crate::io::digest::hex(&h.finalize()))
 }
 
-/// Prepares every pass (trajectory, frame, profile files mapped).
+/// Prepares every pass ([`prepare_pass`]).
 pub fn prepare_passes(day: &LoadedDay) -> Result<Vec<Prepared>> {
-    let out = &day.config.day.out;
     (0..day.config.passes.len())
-        .map(|i| prepare::run(&pass_pipeline(day, i, &out.join("units").join("x.las"))))
+        .map(|i| prepare_pass(day, i))
         .collect()
+}
+
+/// Prepares pass `pass` (trajectory, frame, profile files mapped; no file hashed: the plan's
+/// fingerprint identifies the inputs).
+pub fn prepare_pass(day: &LoadedDay, pass: usize) -> Result<Prepared> {
+    let units = day.config.day.out.join("units");
+    prepare::open(&pass_pipeline(day, pass, &units.join("x.las")))
 }
 
 /// The plan at `path`, if one is there; refused when made from other inputs.

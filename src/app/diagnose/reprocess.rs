@@ -5,7 +5,7 @@
 use super::model::Effect;
 use crate::io::atomic::write_atomic;
 use crate::io::config_file;
-use crate::pipeline::config::{self, LoadedPipeline, PipelineConfig, TimeModel};
+use crate::pipeline::config::{LoadedPipeline, PipelineConfig, TimeModel};
 use crate::{Error, Result};
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -100,11 +100,10 @@ pub fn set_lines(c: &PipelineConfig, estimates: &[(Effect, f64)]) -> Result<Vec<
         .collect())
 }
 
-/// The pipeline re-loaded with its own overrides and `set`, writing its LAS to
-/// `out_dir/corrected.las`.
+/// The pipeline `p` as given (in memory: a day's pass pipeline carries its own profile files
+/// and clock) with `set` added, writing its LAS to `out_dir/corrected.las`.
 pub fn corrected(p: &LoadedPipeline, set: &[String], out_dir: &Path) -> Result<LoadedPipeline> {
-    let overrides: Vec<String> = p.overrides.iter().chain(set).cloned().collect();
-    let mut loaded = config::load(&p.path, &overrides)?;
+    let mut loaded = p.with_overrides(set)?;
     loaded.config.output.las = out_dir.join(CORRECTED_LAS).into();
     loaded.config.output.report = None;
     Ok(loaded)
@@ -138,6 +137,7 @@ pub fn write_pipeline(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pipeline::config;
 
     const PIPELINE: &str = r#"
 [inputs]
@@ -196,6 +196,12 @@ las = "out/x.las"
             c.config.latency.attitude_s, 0.001,
             "the run's own overrides are kept"
         );
+        // A change made in memory after loading (a day's pass: its own profile files) stays.
+        let mut pass = p.clone();
+        pass.config.inputs.profiles = vec![dir.path().join("survey/p02.bin").into()];
+        let c2 = corrected(&pass, &lines, &out).unwrap();
+        assert_eq!(c2.config.inputs.profiles, pass.config.inputs.profiles);
+        assert_eq!(c2.config.sensor.range_zero_m, 0.02);
         let path = out.join(CORRECTED_PIPELINE);
         write_pipeline(&c.config, &p.path, &lines, &path).unwrap();
         let again = config::load(&path, &[]).unwrap();

@@ -64,7 +64,7 @@ pub struct LasWriterConfig {
 }
 
 /// What a finished file holds.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LasSummary {
     /// Destination written.
     pub path: PathBuf,

@@ -87,6 +87,27 @@ pub fn load(path: &Path, overrides: &[String]) -> Result<LoadedPipeline> {
     })
 }
 
+impl LoadedPipeline {
+    /// This pipeline as it is in memory (a caller may have changed it since it was loaded)
+    /// with more `KEY=VALUE` overrides applied and checked as [`load`] does; relative paths in
+    /// them are resolved against the pipeline file's folder. Errors name the file `(with
+    /// --set)` and the key.
+    pub fn with_overrides(&self, set: &[String]) -> Result<LoadedPipeline> {
+        let body = toml::to_string(&self.config)
+            .map_err(|e| Error::Invalid(format!("{}: TOML: {e}", self.path.display())))?;
+        let dir = crate::io::atomic::parent_dir(&self.path);
+        let dir = std::path::absolute(dir).map_err(|e| Error::io(&self.path, e))?;
+        let source = self.path.display().to_string();
+        let parsed = config_file::parse::<PipelineConfig>(&body, &source, &dir, set)?;
+        validate(&parsed.value, &parsed.source)?;
+        Ok(LoadedPipeline {
+            path: self.path.clone(),
+            config: parsed.value,
+            overrides: self.overrides.iter().chain(set).cloned().collect(),
+        })
+    }
+}
+
 /// Each table's own checks, then what spans tables.
 fn validate(c: &PipelineConfig, source: &str) -> Result<()> {
     check(c).map_err(|(key, problem)| Error::config(source, key, problem))

@@ -1,0 +1,291 @@
+//! What the night does besides georeferencing: the diagnosis of each pass and, with
+//! `auto_correct = true`, the re-processing of a pass whose diagnosis names an effect, on the
+//! simulated day of `day.rs` with a catalogue effect injected.
+
+use crate::day::{
+    assert_counts_add_up, day_file, kinescan, las_files, ok, simulated_day_with, three_passes,
+    PASSES,
+};
+use kinescan::geo::projection::MapFrame;
+use kinescan::sim::read_truth_points;
+use nalgebra::Vector3;
+use std::path::{Path, PathBuf};
+
+/// The injected effect: the sensor's true range zero is 3 cm beyond the template's.
+const RANGE_ZERO_ERROR: &str = "range_zero_error_m = 0.03";
+/// The `[day.night]` that applies the diagnosed corrections.
+const AUTO_CORRECT: &str = "diagnose = true\nauto_correct = true";
+
+/// The simulated day (with `effects` injected) and a template diagnosing against its patches.
+fn diagnosed_day(dir: &Path, effects: &str) {
+    simulated_day_with(dir, effects);
+    let template = std::fs::read_to_string(dir.join("template.toml")).unwrap();
+    std::fs::write(
+        dir.join("template.toml"),
+        template + "[diagnose]\npatches = \"patches.csv\"\n",
+    )
+    .unwrap();
+}
+
+/// Writes the day file `<name>.toml` (three passes, per-pass layout, into `<name>/`) with
+/// `night` (lines of `[day.night]`).
+fn night_day(dir: &Path, name: &str, night: &str) -> PathBuf {
+    let day = day_file(dir, name, name, "{ kind = \"per_pass\" }", &three_passes());
+    let text = std::fs::read_to_string(&day).unwrap();
+    // The night table before the first pass (TOML: after it would belong to the pass).
+    let night = format!("\n[day.night]\n{night}\n\n[[passes]]");
+    std::fs::write(&day, text.replacen("\n[[passes]]", &night, 1)).unwrap();
+    day
+}
+
+fn json(path: &Path) -> serde_json::Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+/// `[day.night] diagnose = true`: each pass diagnosed against the template's patches into
+/// `<out>/diagnosis_<pass>/`, the verdicts in the day report and the morning report.
+#[test]
+fn the_night_diagnoses_each_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    diagnosed_day(d, "");
+    let day = night_day(d, "night", "diagnose = true");
+    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    let report = json(&d.join("night/day.report.json"));
+    let diagnosis = report["diagnosis"].as_array().unwrap();
+    assert_eq!(diagnosis.len(), PASSES.len());
+    let md = std::fs::read_to_string(d.join("night/report.md")).unwrap();
+    for (k, pass) in PASSES.iter().enumerate() {
+        assert_eq!(diagnosis[k]["pass"], *pass);
+        let own = json(&d.join(format!("night/diagnosis_{pass}/diagnosis.json")));
+        let verdict = diagnosis[k]["verdict"].as_str().unwrap();
+        assert!(
+            !verdict.is_empty() && own["verdict"].is_string(),
+            "{verdict}"
+        );
+        assert!(md.contains(&format!("| {pass} | {verdict} |")), "{md}");
+    }
+}
+
+/// RMS (m) of the 3D distance of each point of the LAS file `las` to its true position:
+/// the pass's returns in record order, those the simulator marks missing left out (the files
+/// must hold exactly the others).
+fn rms_to_truth(las: &Path, truth: &[[f64; 3]]) -> f64 {
+    let frame = MapFrame::utm(32, true).unwrap();
+    let expected: Vec<Vector3<f64>> = truth
+        .iter()
+        .filter(|t| !t[0].is_nan())
+        .map(|t| frame.ecef_to_map(&Vector3::new(t[0], t[1], t[2])))
+        .collect();
+    let mut reader = las::Reader::from_path(las).unwrap();
+    let points: Vec<las::Point> = reader
+        .read_all()
+        .unwrap()
+        .points()
+        .map(Result::unwrap)
+        .collect();
+    assert_eq!(points.len(), expected.len(), "{}", las.display());
+    let sum: f64 = points
+        .iter()
+        .zip(&expected)
+        .map(|(p, t)| (Vector3::new(p.x, p.y, p.z) - t).norm_squared())
+        .sum();
+    (sum / points.len() as f64).sqrt()
+}
+
+/// The inode of each pass's `diagnosis.json` (a new diagnosis publishes a new file).
+fn diagnosis_inodes(out: &Path) -> Vec<u64> {
+    use std::os::unix::fs::MetadataExt;
+    let json = |p: &str| out.join(format!("diagnosis_{p}/diagnosis.json"));
+    PASSES
+        .iter()
+        .map(|p| std::fs::metadata(json(p)).unwrap().ino())
+        .collect()
+}
+
+/// The truth points of each pass file (the passes cut the simulated drive by profile).
+fn truth_per_pass(dir: &Path) -> Vec<Vec<[f64; 3]>> {
+    let truth = read_truth_points(&dir.join("truth_points.bin")).unwrap();
+    let mut at = 0;
+    PASSES
+        .iter()
+        .map(|p| {
+            let n = kinescan::io::profiles::ProfileFile::open(&dir.join(format!("{p}.ksprof")))
+                .unwrap()
+                .len();
+            at += n;
+            truth[at - n..at].to_vec()
+        })
+        .collect()
+}
+
+/// `auto_correct = true` on a day whose sensor has a range zero error of 3 cm the template
+/// does not know: every pass whose diagnosis names an effect is re-processed with its
+/// correction and lands closer to the truth than without it; the reports say which
+/// correction, with its estimate and sigma and the gap before and after; a re-run resumes
+/// every unit, corrected ones included. `auto_correct = false` leaves the bytes of a day
+/// without diagnosis.
+#[test]
+fn auto_correct_re_processes_a_pass_with_its_diagnosed_correction() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    diagnosed_day(d, RANGE_ZERO_ERROR);
+    let plain = night_day(d, "plain", "diagnose = false");
+    let reported = night_day(d, "reported", "diagnose = true");
+    let corrected = night_day(d, "corrected", AUTO_CORRECT);
+    for day in [&plain, &reported, &corrected] {
+        ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    }
+    let (plain_las, reported_las) = (las_files(&d.join("plain")), las_files(&d.join("reported")));
+    assert!(
+        plain_las == reported_las,
+        "auto_correct = false changed the day's files"
+    );
+
+    let out = d.join("corrected");
+    assert_counts_add_up(&out);
+    let report = json(&out.join("day.report.json"));
+    let other = json(&d.join("reported/day.report.json"));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let truth = truth_per_pass(d);
+    let mut applied = 0;
+    for (k, pass) in PASSES.iter().enumerate() {
+        let diag = &report["diagnosis"][k];
+        // The same diagnosis whether applied or reported.
+        assert_eq!(diag["verdict"], other["diagnosis"][k]["verdict"], "{pass}");
+        assert_eq!(diag["set"], other["diagnosis"][k]["set"], "{pass}");
+        assert!(other["diagnosis"][k].get("applied").is_none());
+        let file = format!("{pass}.las");
+        let before = rms_to_truth(&d.join("reported").join(&file), &truth[k]);
+        let after = rms_to_truth(&out.join(&file), &truth[k]);
+        let Some(a) = diag.get("applied") else {
+            assert!(
+                !diag["verdict"].as_str().unwrap().starts_with("effect"),
+                "{diag}"
+            );
+            let same = std::fs::read(out.join(&file)).unwrap();
+            assert!(same == std::fs::read(d.join("reported").join(&file)).unwrap());
+            continue;
+        };
+        applied += 1;
+        println!(
+            "{pass}: {} -> RMS to truth {before:.4} m -> {after:.4} m",
+            diag["set"]
+        );
+        assert!(after < 0.5 * before, "{pass}: {before} m -> {after} m");
+        let effect = &a["effects"][0];
+        let (estimate, sigma) = (
+            effect["estimate"].as_f64().unwrap(),
+            effect["sigma"].as_f64(),
+        );
+        assert!(sigma.unwrap() > 0.0);
+        let set = diag["set"][0].as_str().unwrap();
+        assert!(
+            md.contains(&format!("applied: {set}"))
+                && md.contains(&format!(
+                    "{} = {estimate:.4e} +- ",
+                    effect["effect"].as_str().unwrap()
+                )),
+            "{md}"
+        );
+        // The diagnosis re-processed this pass (not the template's first one) for its gap after.
+        let toml = std::fs::read_to_string(out.join(format!("diagnosis_{pass}/corrected.toml")));
+        let profiles = format!("{pass}.ksprof\"]");
+        assert!(toml.unwrap().contains(&profiles), "{pass}: corrected.toml");
+        let chi2 = diag["chi2_per_dof"].as_array().unwrap();
+        assert!(chi2[1].as_f64() < chi2[0].as_f64(), "{diag}");
+        // The pass's output is its corrected units' files.
+        let units: Vec<&str> = a["units"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|u| u.as_str().unwrap())
+            .collect();
+        assert!(!units.is_empty());
+        for u in &units {
+            assert!(out.join("units").join(format!("{u}.las")).is_file(), "{u}");
+        }
+    }
+    assert!(applied >= 1, "no pass corrected: {}", report["diagnosis"]);
+
+    // A re-run resumes: no unit (corrected ones included) runs again, no diagnosis again.
+    let journal = std::fs::read(out.join("journal.jsonl")).unwrap();
+    let before = las_files(&out);
+    let diagnosis_files = diagnosis_inodes(&out);
+    ok(kinescan(&["day", corrected.to_str().unwrap(), "-q"]));
+    assert_eq!(std::fs::read(out.join("journal.jsonl")).unwrap(), journal);
+    assert_eq!(diagnosis_inodes(&out), diagnosis_files, "diagnosed again");
+    assert!(las_files(&out) == before);
+    let again = json(&out.join("day.report.json"));
+    assert_eq!(again["diagnosis"], report["diagnosis"]);
+    assert!(again["timings_s"].get("corrected_units").is_some());
+
+    // The states a kill leaves, made exactly, then resumed: the same files each time.
+    let corrected_units: Vec<String> = report["diagnosis"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|d| d["applied"]["units"].as_array().unwrap())
+        .map(|u| u.as_str().unwrap().to_string())
+        .collect();
+    let (last, rest) = corrected_units.split_last().unwrap();
+    // Killed in the corrected units: the last one's file renamed into place but not journalled,
+    // the pass before without its corrected units at all.
+    let p02: Vec<String> = rest
+        .iter()
+        .filter(|u| u.starts_with("p02"))
+        .cloned()
+        .collect();
+    forget_units(&out, std::slice::from_ref(last), &p02);
+    resume_to(&corrected, &before);
+    // Killed before the corrections were written: no corrected unit, no corrections.json.
+    forget_units(&out, &[], &corrected_units);
+    std::fs::remove_file(out.join("corrections.json")).unwrap();
+    resume_to(&corrected, &before);
+    assert!(out.join("corrections.json").is_file());
+}
+
+/// Leaves the day in `out` as a kill before its merge would: the published files gone, the
+/// journal lines of `unjournalled` and `removed` dropped, the unit files of `removed` too.
+fn forget_units(out: &Path, unjournalled: &[String], removed: &[String]) {
+    for f in las_files(out).iter().map(|(name, _)| name) {
+        std::fs::remove_file(out.join(f)).unwrap();
+    }
+    std::fs::remove_file(out.join("day.report.json")).unwrap();
+    let journal = std::fs::read_to_string(out.join("journal.jsonl")).unwrap();
+    let dropped = |line: &&str| {
+        let unit = json_line_unit(line);
+        unjournalled.contains(&unit) || removed.contains(&unit)
+    };
+    let kept: Vec<&str> = journal.lines().filter(|l| !dropped(l)).collect();
+    assert!(kept.len() < journal.lines().count());
+    std::fs::write(out.join("journal.jsonl"), kept.join("\n") + "\n").unwrap();
+    for u in removed {
+        std::fs::remove_file(out.join("units").join(format!("{u}.las"))).unwrap();
+    }
+}
+
+fn json_line_unit(line: &str) -> String {
+    let v: serde_json::Value = serde_json::from_str(line).unwrap();
+    v["unit"].as_str().unwrap().to_string()
+}
+
+/// Runs `day` again: its files are `expected` and its report's counts add up.
+fn resume_to(day: &Path, expected: &[(String, Vec<u8>)]) {
+    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    let out = day.with_extension("");
+    assert!(las_files(&out) == expected, "resumed files differ");
+    assert_counts_add_up(&out);
+}
+
+/// An auto-corrected day killed at seeded points (in its diagnosis, its corrected units or
+/// its merge) and resumed: the bytes of the uninterrupted day.
+#[test]
+fn a_killed_auto_corrected_day_resumes_to_identical_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    diagnosed_day(d, RANGE_ZERO_ERROR);
+    let whole = night_day(d, "whole", AUTO_CORRECT);
+    let killed = night_day(d, "killed", AUTO_CORRECT);
+    crate::day::assert_kills_resume(&whole, &killed, (0.3, 0.8), 1);
+}
