@@ -4,8 +4,8 @@
 //! The returns' [`ReturnInputs`] are stored by column (one array per value), so the loop over
 //! returns is one straight-line body on unit-stride arrays that the compiler vectorises: each
 //! lane does the very IEEE operations of the scalar code in the same order (no reassociation,
-//! no fused multiply-add), so the variances are identical. With AVX2 (detected at run time)
-//! a vector holds four returns, else two.
+//! no fused multiply-add), so the variances are identical. A vector holds eight returns with
+//! AVX-512, four with AVX2 (detected at run time), else two.
 
 use super::propagate::{AxisVariances, Propagator, ReturnInputs};
 use super::N_GROUPS;
@@ -73,10 +73,21 @@ impl VarianceBatch {
     /// Propagates every return held; [`Self::variances`] gives the results.
     pub fn propagate(&mut self, p: &Propagator) {
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F.
+            return unsafe { self.propagate_avx512(p) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU has AVX2.
             return unsafe { self.propagate_avx2(p) };
         }
+        self.propagate_lanes(p)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    fn propagate_avx512(&mut self, p: &Propagator) {
         self.propagate_lanes(p)
     }
 
@@ -182,13 +193,26 @@ mod tests {
             .collect();
         for groups in [false, true] {
             let p = Propagator::new(inputs, groups, sensor.lever_arm_b_m, sensor.r_s_to_b);
-            // The dispatched path (AVX2 here when the CPU has it) and the baseline one.
-            let mut batch = VarianceBatch::default();
-            cases.iter().for_each(|x| batch.push(x));
-            batch.propagate(&p);
-            let mut baseline = VarianceBatch::default();
-            cases.iter().for_each(|x| baseline.push(x));
-            baseline.propagate_lanes(&p);
+            // Every path this CPU can run: dispatched, baseline, AVX2, AVX-512.
+            let mut batches = Vec::new();
+            let mut run = |f: &dyn Fn(&mut VarianceBatch)| {
+                let mut batch = VarianceBatch::default();
+                cases.iter().for_each(|x| batch.push(x));
+                f(&mut batch);
+                batches.push(batch);
+            };
+            run(&|b| b.propagate(&p));
+            run(&|b| b.propagate_lanes(&p));
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU has AVX2.
+                run(&|b| unsafe { b.propagate_avx2(&p) });
+            }
+            #[cfg(target_arch = "x86_64")]
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU has AVX-512F.
+                run(&|b| unsafe { b.propagate_avx512(&p) });
+            }
             for (k, x) in cases.iter().enumerate() {
                 let one = if groups {
                     p.variances_of::<true>(x)
@@ -199,8 +223,13 @@ mod tests {
                     let all = v.var_m2.iter().chain(&v.group_variance_m2);
                     all.map(|x| x.to_bits()).collect::<Vec<_>>()
                 };
-                for got in [batch.variances(k), baseline.variances(k)] {
-                    assert_eq!(bits(&got), bits(&one), "return {k}, groups {groups}");
+                for (path, batch) in batches.iter().enumerate() {
+                    let got = batch.variances(k);
+                    assert_eq!(
+                        bits(&got),
+                        bits(&one),
+                        "return {k}, groups {groups}, path {path}"
+                    );
                 }
             }
         }
