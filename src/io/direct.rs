@@ -196,10 +196,15 @@ mod tests {
         let data: Vec<u8> = (0..3 * ALIGN as u32 + 1234)
             .map(|k| (k * 7 % 251) as u8)
             .collect();
-        for (buffer, piece) in [(ALIGN, 1000), (3 * ALIGN, 5000), (1, 17), (1 << 20, 4096)] {
-            let path = dir.path().join(format!("f{buffer}_{piece}"));
+        let cases = [(ALIGN, 1000), (3 * ALIGN, 5000), (1, 17), (1 << 20, 4096)];
+        // With direct I/O, and as on a filesystem that refuses it.
+        for ((buffer, piece), direct) in cases.into_iter().flat_map(|c| [(c, true), (c, false)]) {
+            let path = dir.path().join(format!("f{buffer}_{piece}_{direct}"));
             let file = File::create_new(&path).unwrap();
             let mut w = DirectWriter::wrap(file, &path, buffer).unwrap();
+            if !direct {
+                w.direct = None;
+            }
             for part in data.chunks(piece) {
                 w.write_all(part).unwrap();
             }

@@ -6,7 +6,8 @@
 //! - [`encode_points`] turns a chunk of [`LasPoint`]s into raw record bytes and [`ChunkStats`]
 //!   (pure, allocation-free per point, safe to run on many threads at once);
 //! - [`LasWriter`] appends encoded chunks in order to a temporary file in the destination
-//!   directory, merges their stats, writes the header last, fsyncs and renames atomically.
+//!   directory (with direct I/O where the filesystem allows: `io::direct`), merges their
+//!   stats, writes the header last, fsyncs and renames atomically.
 //!
 //! The header and VLR framing is serialised with the `las` crate's raw types; point records use
 //! our own encoder for speed. Output bytes depend only on the points and the configuration (no
