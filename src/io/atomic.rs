@@ -24,11 +24,46 @@ const TEMP_SUFFIX: &str = ".tmp";
 /// Buffer of [`AtomicFile::create`] (bytes).
 const DEFAULT_BUFFER_BYTES: usize = 1 << 20;
 
-/// A buffered writer whose content appears at `path` only when committed.
-pub struct AtomicFile {
+/// How an [`AtomicFile`] writes its temporary: through a [`BufWriter`] (the default) or with
+/// direct I/O (`io::direct`, for large sequential outputs).
+pub trait TempWriter: Sized {
+    /// Wraps the temporary `file`, just created at `temp_path`, with a buffer of about
+    /// `buffer_bytes`.
+    fn wrap(file: File, temp_path: &Path, buffer_bytes: usize) -> std::io::Result<Self>;
+    /// Appends all of `bytes`.
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()>;
+    /// Overwrites `bytes` at absolute `offset` of what was written; later writes append.
+    fn write_at(&mut self, offset: u64, bytes: &[u8]) -> std::io::Result<()>;
+    /// Writes what is buffered and gives the file back (to be fsynced).
+    fn into_file(self) -> std::io::Result<File>;
+}
+
+impl TempWriter for BufWriter<File> {
+    fn wrap(file: File, _temp_path: &Path, buffer_bytes: usize) -> std::io::Result<Self> {
+        Ok(BufWriter::with_capacity(buffer_bytes, file))
+    }
+
+    fn write_all(&mut self, bytes: &[u8]) -> std::io::Result<()> {
+        Write::write_all(self, bytes)
+    }
+
+    fn write_at(&mut self, offset: u64, bytes: &[u8]) -> std::io::Result<()> {
+        self.seek(SeekFrom::Start(offset))?;
+        Write::write_all(self, bytes)?;
+        self.seek(SeekFrom::End(0))?;
+        Ok(())
+    }
+
+    fn into_file(self) -> std::io::Result<File> {
+        self.into_inner().map_err(|e| e.into_error())
+    }
+}
+
+/// A writer whose content appears at `path` only when committed.
+pub struct AtomicFile<W: TempWriter = BufWriter<File>> {
     path: PathBuf,
     temp_path: PathBuf,
-    writer: Option<BufWriter<File>>,
+    writer: Option<W>,
 }
 
 impl AtomicFile {
@@ -36,7 +71,9 @@ impl AtomicFile {
     pub fn create(path: &Path) -> Result<Self> {
         Self::with_capacity(path, DEFAULT_BUFFER_BYTES)
     }
+}
 
+impl<W: TempWriter> AtomicFile<W> {
     /// [`create`](AtomicFile::create) with a write buffer of `buffer_bytes`.
     pub fn with_capacity(path: &Path, buffer_bytes: usize) -> Result<Self> {
         let dir = parent_dir(path);
@@ -46,11 +83,14 @@ impl AtomicFile {
             .ok_or_else(|| Error::bad_file(path, "output path has no file name".to_string()))?;
         let (temp_path, file) =
             create_temp_file(dir, &name.to_string_lossy()).map_err(|e| Error::io(path, e))?;
-        Ok(AtomicFile {
+        let writer = W::wrap(file, &temp_path, buffer_bytes);
+        let mut f = AtomicFile {
             path: path.to_path_buf(),
             temp_path,
-            writer: Some(BufWriter::with_capacity(buffer_bytes, file)),
-        })
+            writer: None,
+        };
+        f.writer = Some(writer.map_err(|e| Error::io(path, e))?);
+        Ok(f)
     }
 
     /// Destination path.
@@ -65,24 +105,19 @@ impl AtomicFile {
         result.map_err(|e| Error::io(&self.path, e))
     }
 
-    /// The underlying buffered writer (for formatting APIs); map its errors with
-    /// [`Error::io`] on [`path`](AtomicFile::path).
-    pub fn writer(&mut self) -> &mut BufWriter<File> {
+    /// The underlying writer (for formatting APIs); map its errors with [`Error::io`] on
+    /// [`path`](AtomicFile::path).
+    pub fn writer(&mut self) -> &mut W {
         self.writer
             .as_mut()
             .expect("the writer is only taken by commit, which consumes self")
     }
 
-    /// Overwrites `bytes` at absolute `offset` (e.g. a header completed at the end), then
-    /// returns to the end of the file.
+    /// Overwrites `bytes` at absolute `offset` (e.g. a header completed at the end); later
+    /// writes append.
     pub fn write_at(&mut self, offset: u64, bytes: &[u8]) -> Result<()> {
-        let path = self.path.clone();
-        let io = |e| Error::io(&path, e);
-        let w = self.writer();
-        w.seek(SeekFrom::Start(offset)).map_err(io)?;
-        w.write_all(bytes).map_err(io)?;
-        w.seek(SeekFrom::End(0)).map_err(io)?;
-        Ok(())
+        let result = self.writer().write_at(offset, bytes);
+        result.map_err(|e| Error::io(&self.path, e))
     }
 
     /// Flushes and fsyncs the temporary file, renames it onto the destination and fsyncs the
@@ -90,7 +125,7 @@ impl AtomicFile {
     pub fn commit(mut self) -> Result<()> {
         let io = |e| Error::io(&self.path, e);
         let writer = self.writer.take().expect("commit runs once");
-        let file = writer.into_inner().map_err(|e| io(e.into_error()))?;
+        let file = writer.into_file().map_err(io)?;
         file.sync_all().map_err(io)?;
         drop(file);
         std::fs::rename(&self.temp_path, &self.path).map_err(io)?;
@@ -100,7 +135,7 @@ impl AtomicFile {
     }
 }
 
-impl Drop for AtomicFile {
+impl<W: TempWriter> Drop for AtomicFile<W> {
     fn drop(&mut self) {
         if !self.temp_path.as_os_str().is_empty() {
             drop(self.writer.take());

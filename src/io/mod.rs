@@ -6,6 +6,7 @@ pub mod copc;
 pub mod counters;
 pub(crate) mod csv_text;
 pub(crate) mod digest;
+pub(crate) mod direct;
 pub mod info;
 pub mod las;
 pub mod laz;

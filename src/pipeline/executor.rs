@@ -4,21 +4,19 @@
 
 use super::config::Strictness;
 use super::georeference::ReturnGeoreferencer;
+use super::point_batch::PointBatch;
 use super::prepare::PreparedInput;
 use super::report::{FileRecord, InputReport, RejectReason, ReturnCounts};
 use super::schema::PointFill;
-use super::write::{encode_error, LasSink};
+use super::write::LasSink;
 use crate::io::counters::CounterTracker;
 use crate::io::digest::hex;
-use crate::io::las::{encode_points, ChunkStats, LasPoint, PointLayout};
+use crate::io::las::{ChunkStats, PointLayout};
 use crate::io::profiles::ProfileFile;
 use crate::{Error, Result};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 use std::ops::Range;
-
-/// Points encoded at a time (keeps the per-thread point buffer in cache).
-const ENCODE_BATCH: usize = 1024;
 
 /// The result of one chunk of returns: its LAS records, already encoded.
 struct ChunkOut {
@@ -50,9 +48,7 @@ fn chunk(
         time_span_s: None,
     };
     let mut cursors = geo.cursors();
-    let mut batch = vec![LasPoint::default(); ENCODE_BATCH];
-    let mut batch_records = [0usize; ENCODE_BATCH];
-    let mut filled = 0;
+    let mut batch = PointBatch::new(geo);
     let (mut t_min, mut t_max) = (f64::INFINITY, f64::NEG_INFINITY);
     for i in range {
         let r = file.get(i);
@@ -61,16 +57,10 @@ fn chunk(
         }
         match geo.georeference(&r, &mut cursors) {
             Ok(g) => {
-                let p = &mut batch[filled];
-                fill.point(&r, i, &g, p);
-                if let Some(var) = geo.variances(&g, &mut cursors) {
-                    fill.uncertainty(&var, p);
-                }
-                batch_records[filled] = i;
-                filled += 1;
-                if filled == ENCODE_BATCH {
-                    encode_into(&batch, &batch_records, layout, &mut out, file)?;
-                    filled = 0;
+                batch.push((&r, i, &g), fill, geo, &mut cursors);
+                if batch.is_full() {
+                    let stats = batch.flush(fill, geo, layout, file, &mut out.records)?;
+                    out.stats.merge(&stats);
                 }
                 t_min = t_min.min(g.t_s);
                 t_max = t_max.max(g.t_s);
@@ -81,30 +71,12 @@ fn chunk(
             }
         }
     }
-    encode_into(&batch[..filled], &batch_records, layout, &mut out, file)?;
+    let stats = batch.flush(fill, geo, layout, file, &mut out.records)?;
+    out.stats.merge(&stats);
     if t_min <= t_max {
         out.time_span_s = Some((t_min, t_max));
     }
     Ok(out)
-}
-
-/// Encodes `batch` (the returns `records` of `file`), appending its records and stats to
-/// `out`. A point that cannot be encoded is named by its record, and a coordinate beyond the
-/// LAS range by the keys that fix it.
-fn encode_into(
-    batch: &[LasPoint],
-    records: &[usize],
-    layout: &PointLayout,
-    out: &mut ChunkOut,
-    file: &ProfileFile,
-) -> Result<()> {
-    match encode_points(batch, layout, &mut out.records) {
-        Ok(stats) => {
-            out.stats.merge(&stats);
-            Ok(())
-        }
-        Err(e) => Err(encode_error(e, batch, records, layout, file)),
-    }
 }
 
 /// Record buffers handed back by the writer for reuse: a fresh multi-megabyte buffer per chunk

@@ -6,7 +6,7 @@
 //! [`RawReturn`] and per-thread [`ReturnCursors`] and gives a [`GeoreferencedReturn`]: the
 //! return's time `t` (and its partials with respect to the clock), the pose (position at `t`,
 //! attitude at `t + tau`), the conventions §4 terms, the ECEF point and the map point; and, with
-//! `[uncertainty]`, the per-axis variances ([`ReturnGeoreferencer::variances`]) or the full
+//! `[uncertainty]`, the propagation's inputs ([`ReturnGeoreferencer::variance_inputs`]) or the full
 //! geometry for partials ([`ReturnGeoreferencer::geometry`]). A return that cannot be
 //! georeferenced gives its [`RejectReason`].
 //!
@@ -25,7 +25,7 @@ use crate::georef::{ReturnTerms, Sensor};
 use crate::io::profiles::{ProfileColumns, RawReturn};
 use crate::trajectory::{NavGap, NavSigma, Pose, PoseCursor, SigmaCursor, Trajectory};
 use crate::uncertainty::model::FrameCache;
-use crate::uncertainty::propagate::{AxisVariances, Propagator};
+use crate::uncertainty::propagate::{Propagator, ReturnInputs};
 use crate::uncertainty::PointGeometry;
 use nalgebra::Vector3;
 
@@ -292,22 +292,26 @@ impl<'a> ReturnGeoreferencer<'a> {
         })
     }
 
-    /// Variances along the output axes of a georeferenced return (with `[uncertainty]`).
+    /// The propagator of `[uncertainty]`, if configured.
+    pub fn propagator(&self) -> Option<&Propagator> {
+        self.propagator.as_ref()
+    }
+
+    /// What the propagation of a georeferenced return reads (with `[uncertainty]`): its
+    /// variances are [`Propagator::variances_of`] these, or a
+    /// [`crate::uncertainty::batch::VarianceBatch`]'s.
     #[inline]
-    pub fn variances(
+    pub fn variance_inputs(
         &self,
         g: &GeoreferencedReturn,
         cursors: &mut ReturnCursors,
-    ) -> Option<AxisVariances> {
-        let (propagator, (_, frames), nav_sigma) = (
-            self.propagator.as_ref()?,
-            cursors.sigmas.as_mut()?,
-            g.nav_sigma.as_ref()?,
-        );
+    ) -> Option<ReturnInputs> {
+        let ((_, frames), nav_sigma) = (cursors.sigmas.as_mut()?, g.nav_sigma.as_ref()?);
+        self.propagator.as_ref()?;
         // Reuses the georeferencing terms; the map axes and the local-level turn come from
         // the cache.
         let (r_n_to_map, dtheta) = frames.frames(&g.x_e_m, &g.pose.nav);
-        Some(propagator.variances(
+        Some(ReturnInputs::new(
             r_n_to_map,
             dtheta,
             &g.terms,

@@ -26,6 +26,7 @@ pub mod config;
 pub(crate) mod executor;
 pub(crate) mod files;
 pub mod georeference;
+mod point_batch;
 pub(crate) mod prepare;
 pub(crate) mod publish;
 pub mod report;

@@ -3,7 +3,7 @@
 //! - [`model`]: the georeferencing equation as a function of the 18 error inputs, exact and
 //!   linearised (analytic Jacobian).
 //! - [`mod@propagate`]: `Sigma = J Q J^T` per return along the map axes, 95% figures and per-group
-//!   variance shares.
+//!   variance shares; [`batch`]: the same for many returns at once, vectorised.
 //! - [`sobol`]: Saltelli sampling, Saltelli-2010 first-order and Jansen total-effect
 //!   estimators with bootstrap intervals, on the exact model.
 //!
@@ -11,6 +11,7 @@
 //!
 //! docs/uncertainty.md documents the model, the inputs and the output fields.
 
+pub mod batch;
 pub mod model;
 pub mod propagate;
 pub mod sobol;

@@ -183,6 +183,121 @@ pub struct Propagator {
     r_s_to_b: Matrix3<f64>,
     /// Body-frame axes of the boresight angles (`dR_s^b/dk = [w_k]x R_s^b`), as columns.
     boresight_axes_b: Matrix3<f64>,
+    /// Body-frame covariance of the lever arm, `diag(sigma_l^2)` (m^2).
+    lever: Sym,
+}
+
+/// What [`Propagator::variances_of`] reads of one return (see [`Propagator::variances`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ReturnInputs {
+    /// `d x_out / d x_e` times `R_n^e` at the IMU.
+    pub r_n_to_out: Matrix3<f64>,
+    /// Entries (0, 1), (1, 0), (2, 1) of [`LocalLevel::dtheta_per_m`] (the others are 0).
+    pub dtheta_per_m: [f64; 3],
+    /// `R_b^n` of the georeferencing terms.
+    pub r_b_to_n: Matrix3<f64>,
+    /// `a_b = l_b + R_s^b x_s` (m).
+    pub a_b_m: Vector3<f64>,
+    /// `(sin, cos)` of alpha.
+    pub sin_cos_alpha: (f64, f64),
+    /// `(sin, cos)` of the corrected mirror angle.
+    pub sin_cos_beta: (f64, f64),
+    /// Corrected range (m).
+    pub range_total_m: f64,
+    /// Body rate at `t + tau` (rad/s).
+    pub omega_b_radps: Vector3<f64>,
+    /// NED velocity (m/s).
+    pub v_n_mps: Vector3<f64>,
+    /// SMRMSG sigmas.
+    pub nav: NavSigma,
+    /// Partials of the return's time with respect to (t0, T).
+    pub dt_dclock: [f64; 2],
+}
+
+impl ReturnInputs {
+    /// Number of values in [`Self::values`].
+    pub const LEN: usize = 43;
+
+    /// The inputs of the arguments of [`Propagator::variances`].
+    #[inline]
+    pub fn new(
+        r_n_to_out: &Matrix3<f64>,
+        dtheta_per_m: &Matrix3<f64>,
+        t: &ReturnTerms,
+        omega_b_radps: &Vector3<f64>,
+        v_n_mps: &Vector3<f64>,
+        nav: &NavSigma,
+        dt_dclock: [f64; 2],
+    ) -> Self {
+        debug_assert!(
+            [(0, 0), (0, 2), (1, 1), (1, 2), (2, 0), (2, 2)]
+                .iter()
+                .all(|&ij| dtheta_per_m[ij] == 0.0),
+            "dtheta_per_m is not a LocalLevel's"
+        );
+        ReturnInputs {
+            r_n_to_out: *r_n_to_out,
+            dtheta_per_m: [
+                dtheta_per_m[(0, 1)],
+                dtheta_per_m[(1, 0)],
+                dtheta_per_m[(2, 1)],
+            ],
+            r_b_to_n: t.r_b_to_n,
+            a_b_m: t.a_b_m,
+            sin_cos_alpha: t.sin_cos_alpha,
+            sin_cos_beta: t.sin_cos_beta,
+            range_total_m: t.range_total_m,
+            omega_b_radps: *omega_b_radps,
+            v_n_mps: *v_n_mps,
+            nav: *nav,
+            dt_dclock,
+        }
+    }
+
+    /// The inputs as one array (the columns of a batch of returns, `uncertainty::batch`).
+    #[inline(always)]
+    pub fn values(&self) -> [f64; Self::LEN] {
+        let mut v = [0.0; Self::LEN];
+        v[0..9].copy_from_slice(self.r_n_to_out.as_slice());
+        v[9..12].copy_from_slice(&self.dtheta_per_m);
+        v[12..21].copy_from_slice(self.r_b_to_n.as_slice());
+        v[21..24].copy_from_slice(self.a_b_m.as_slice());
+        (v[24], v[25], v[26], v[27]) = (
+            self.sin_cos_alpha.0,
+            self.sin_cos_alpha.1,
+            self.sin_cos_beta.0,
+            self.sin_cos_beta.1,
+        );
+        v[28] = self.range_total_m;
+        v[29..32].copy_from_slice(self.omega_b_radps.as_slice());
+        v[32..35].copy_from_slice(self.v_n_mps.as_slice());
+        v[35..38].copy_from_slice(self.nav.pos_ned_m.as_slice());
+        v[38..41].copy_from_slice(self.nav.att_rph_rad.as_slice());
+        v[41..43].copy_from_slice(&self.dt_dclock);
+        v
+    }
+
+    /// The inverse of [`Self::values`].
+    #[inline(always)]
+    pub fn from_values(v: &[f64; Self::LEN]) -> Self {
+        let v3 = |k: usize| Vector3::new(v[k], v[k + 1], v[k + 2]);
+        ReturnInputs {
+            r_n_to_out: Matrix3::from_column_slice(&v[0..9]),
+            dtheta_per_m: [v[9], v[10], v[11]],
+            r_b_to_n: Matrix3::from_column_slice(&v[12..21]),
+            a_b_m: v3(21),
+            sin_cos_alpha: (v[24], v[25]),
+            sin_cos_beta: (v[26], v[27]),
+            range_total_m: v[28],
+            omega_b_radps: v3(29),
+            v_n_mps: v3(32),
+            nav: NavSigma {
+                pos_ned_m: v3(35),
+                att_rph_rad: v3(38),
+            },
+            dt_dclock: [v[41], v[42]],
+        }
+    }
 }
 
 impl Propagator {
@@ -194,6 +309,7 @@ impl Propagator {
         lever_arm_b_m: Vector3<f64>,
         r_s_to_b: Matrix3<f64>,
     ) -> Self {
+        let s_lever = &inputs.sigma_lever_arm_b_m;
         Propagator {
             inputs,
             with_groups,
@@ -201,7 +317,13 @@ impl Propagator {
             lever_arm_b_m,
             r_s_to_b,
             boresight_axes_b: r_s_to_b * zyx_axes(&r_s_to_b),
+            lever: Sym::diagonal(&s_lever.component_mul(s_lever)),
         }
+    }
+
+    /// Whether [`Self::variances_of`] computes the group variances.
+    pub fn with_groups(&self) -> bool {
+        self.with_groups
     }
 
     /// Variances along the output axes of one return.
@@ -224,21 +346,36 @@ impl Propagator {
         nav: &NavSigma,
         dt_dclock: [f64; 2],
     ) -> AxisVariances {
-        let i = &self.inputs;
-        let (s_pos, s_att) = (&nav.pos_ned_m, &nav.att_rph_rad);
-        let r_b_n = &t.r_b_to_n;
-        let a_b = t.a_b_m;
-        let x_b = a_b - self.lever_arm_b_m;
+        let x_b = t.a_b_m - self.lever_arm_b_m;
         debug_assert!(
             (x_b - self.r_s_to_b * t.x_s_m).norm() <= 1e-9 * (1.0 + x_b.norm()),
             "terms made with another lever arm or boresight"
         );
-        debug_assert!(
-            [(0, 0), (0, 2), (1, 1), (1, 2), (2, 0), (2, 2)]
-                .iter()
-                .all(|&ij| dtheta_per_m[ij] == 0.0),
-            "dtheta_per_m is not a LocalLevel's"
+        let x = ReturnInputs::new(
+            r_n_to_out,
+            dtheta_per_m,
+            t,
+            omega_b_radps,
+            v_n_mps,
+            nav,
+            dt_dclock,
         );
+        if self.with_groups {
+            self.variances_of::<true>(&x)
+        } else {
+            self.variances_of::<false>(&x)
+        }
+    }
+
+    /// [`Self::variances`] of [`ReturnInputs`]; `GROUPS` is [`Self::with_groups`] (a constant,
+    /// so that a batch of returns is one branch-free loop, `uncertainty::batch`).
+    #[inline(always)]
+    pub fn variances_of<const GROUPS: bool>(&self, x: &ReturnInputs) -> AxisVariances {
+        let i = &self.inputs;
+        let (s_pos, s_att) = (&x.nav.pos_ned_m, &x.nav.att_rph_rad);
+        let r_b_n = &x.r_b_to_n;
+        let a_b = x.a_b_m;
+        let x_b = a_b - self.lever_arm_b_m;
         let (mut att, mut bore, mut scanner) = (Sym::default(), Sym::default(), Sym::default());
         // Attitude axes (zyx_axes): x, (0, c, -s) with (s, c) the normalised (R_zy, R_zz), R^T z.
         let (r20, r21, r22) = (r_b_n[(2, 0)], r_b_n[(2, 1)], r_b_n[(2, 2)]);
@@ -253,9 +390,8 @@ impl Propagator {
             let s_bore = i.sigma_boresight_rad[k];
             bore.add(&(self.boresight_axes_b.column(k).cross(&x_b) * s_bore));
         }
-        let lever = Sym::diagonal(&i.sigma_lever_arm_b_m.component_mul(&i.sigma_lever_arm_b_m));
-        let ((sa, ca), (sb, cb)) = (t.sin_cos_alpha, t.sin_cos_beta);
-        let rho = t.range_total_m;
+        let ((sa, ca), (sb, cb)) = (x.sin_cos_alpha, x.sin_cos_beta);
+        let rho = x.range_total_m;
         let scanner_s = [
             Vector3::new(ca, sa * sb, -sa * cb) * (rho * i.sigma_alpha_rad),
             Vector3::new(0.0, -ca * cb, -ca * sb) * (rho * i.sigma_beta_rad),
@@ -264,19 +400,17 @@ impl Propagator {
         for d in &scanner_s {
             scanner.add(&(self.r_s_to_b * d));
         }
-        let turn_b = omega_b_radps.cross(&a_b);
+        let turn_b = x.omega_b_radps.cross(&a_b);
         let mut latency = Sym::default();
         latency.add(&(turn_b * i.sigma_attitude_latency_s));
-        let body = att.plus(&bore).plus(&lever).plus(&scanner).plus(&latency);
+        let lever = &self.lever;
+        let body = att.plus(&bore).plus(lever).plus(&scanner).plus(&latency);
+        let r_n_to_out = &x.r_n_to_out;
         let r_b_out = r_n_to_out * r_b_n;
 
         // Position columns r_n_to_out (I - [a_n]x dtheta); [a_n]x dtheta has a zero third column.
         let a_n = r_b_n * a_b;
-        let (p, q, w) = (
-            dtheta_per_m[(0, 1)],
-            dtheta_per_m[(1, 0)],
-            dtheta_per_m[(2, 1)],
-        );
+        let [p, q, w] = x.dtheta_per_m;
         let j_pos = [
             r_n_to_out * Vector3::new(1.0 + q * a_n.z, 0.0, -q * a_n.x),
             r_n_to_out * Vector3::new(-w * a_n.y, 1.0 - p * a_n.z + w * a_n.x, p * a_n.y),
@@ -287,17 +421,18 @@ impl Propagator {
             .zip(s_pos.iter())
             .map(|(j, sk)| (j * *sk).component_mul(&(j * *sk)))
             .fold(Vector3::zeros(), |acc, v| acc + v);
+        let v_n_mps = &x.v_n_mps;
         let clock =
             j_pos[0] * v_n_mps.x + j_pos[1] * v_n_mps.y + j_pos[2] * v_n_mps.z + r_b_out * turn_b;
-        let clock = clock.component_mul(&clock) * i.clock_time_variance_s2(dt_dclock);
+        let clock = clock.component_mul(&clock) * i.clock_time_variance_s2(x.dt_dclock);
         let var_m2 = body.diagonal_rotated(&r_b_out) + pos + clock;
 
-        let group_variance_m2 = if self.with_groups {
+        let group_variance_m2 = if GROUPS {
             let gram = Sym::gram(&r_b_out);
             [
                 pos.sum(),
                 gram.dot(&att),
-                gram.dot(&lever),
+                gram.dot(lever),
                 gram.dot(&bore),
                 gram.dot(&scanner),
                 clock.sum() + gram.dot(&latency),

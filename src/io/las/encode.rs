@@ -1,7 +1,9 @@
 //! Point records: [`encode_points`] turns a chunk of [`LasPoint`]s into record bytes and
 //! [`ChunkStats`] (pure, allocation-free per point, safe to run on many threads at once).
 
-use super::{ExtraType, PointLayout, FRACTION_SCALE, MAX_EXTRA_DIMS, SCAN_ANGLE_UNIT_DEG};
+use super::{
+    ExtraType, PointLayout, CORE_RECORD_LEN, FRACTION_SCALE, MAX_EXTRA_DIMS, SCAN_ANGLE_UNIT_DEG,
+};
 use crate::{Error, Result};
 
 const NUMBER_OF_RETURNS_MAX: u8 = 15;
@@ -149,6 +151,10 @@ pub fn encode_points(
     let mut stats = ChunkStats::empty(record_len);
     let start = out.len();
     out.resize(start + points.len() * record_len, 0);
+    let extras: Vec<(ExtraType, usize)> = (layout.extra_dims.iter())
+        .zip(&layout.extra_offsets)
+        .map(|(dim, &at)| (dim.data_type, at))
+        .collect();
     for (i, (p, rec)) in points
         .iter()
         .zip(out[start..].chunks_exact_mut(record_len))
@@ -162,30 +168,30 @@ pub fn encode_points(
         check_returns(p, i)?;
         let scan_angle = scan_angle_counts(p.scan_angle_deg, i)?;
         let gps_time = p.gps_time + shift_s;
-        rec[0..4].copy_from_slice(&counts[0].to_le_bytes());
-        rec[4..8].copy_from_slice(&counts[1].to_le_bytes());
-        rec[8..12].copy_from_slice(&counts[2].to_le_bytes());
-        rec[12..14].copy_from_slice(&p.intensity.to_le_bytes());
-        rec[14] = p.return_number | (p.number_of_returns << 4);
-        rec[15] = 0; // classification flags, scanner channel, scan direction, edge of line
-        rec[16] = p.classification;
-        rec[17] = p.user_data;
-        rec[18..20].copy_from_slice(&scan_angle.to_le_bytes());
-        rec[20..22].copy_from_slice(&p.point_source_id.to_le_bytes());
-        rec[22..30].copy_from_slice(&gps_time.to_le_bytes());
-        for ((dim, &at), &v) in layout
-            .extra_dims
-            .iter()
-            .zip(&layout.extra_offsets)
-            .zip(&p.extra)
-        {
-            match dim.data_type {
-                ExtraType::F32 => rec[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes()),
-                ExtraType::F64 => rec[at..at + 8].copy_from_slice(&v.to_le_bytes()),
+        let (core, extra_bytes) = rec.split_at_mut(CORE_RECORD_LEN);
+        let core: &mut [u8; CORE_RECORD_LEN] = core.try_into().expect("30 bytes");
+        core[0..4].copy_from_slice(&counts[0].to_le_bytes());
+        core[4..8].copy_from_slice(&counts[1].to_le_bytes());
+        core[8..12].copy_from_slice(&counts[2].to_le_bytes());
+        core[12..14].copy_from_slice(&p.intensity.to_le_bytes());
+        core[14] = p.return_number | (p.number_of_returns << 4);
+        core[15] = 0; // classification flags, scanner channel, scan direction, edge of line
+        core[16] = p.classification;
+        core[17] = p.user_data;
+        core[18..20].copy_from_slice(&scan_angle.to_le_bytes());
+        core[20..22].copy_from_slice(&p.point_source_id.to_le_bytes());
+        core[22..30].copy_from_slice(&gps_time.to_le_bytes());
+        for (&(data_type, at), &v) in extras.iter().zip(&p.extra) {
+            let at = at - CORE_RECORD_LEN;
+            match data_type {
+                ExtraType::F32 => {
+                    extra_bytes[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes())
+                }
+                ExtraType::F64 => extra_bytes[at..at + 8].copy_from_slice(&v.to_le_bytes()),
                 // Clamped to 0..=1 (NaN is stored as 0).
                 ExtraType::FractionU8 => {
                     let q = v.clamp(0.0, 1.0) / FRACTION_SCALE;
-                    rec[at] = if q.is_nan() { 0 } else { round_small(q) as u8 };
+                    extra_bytes[at] = if q.is_nan() { 0 } else { round_small(q) as u8 };
                 }
             }
         }
@@ -221,24 +227,31 @@ fn counts_of(v: f64, scale: f64, offset: f64) -> Option<i32> {
     }
 }
 
+/// The stored counts of coordinate `v` on `axis` (0, 1, 2: X, Y, Z) of point `index`.
+#[inline]
 fn quantise(v: f64, axis: usize, layout: &PointLayout, index: usize) -> Result<i32> {
-    let (scale, offset) = (layout.scale_m[axis], layout.offset_m[axis]);
-    if let Some(counts) = counts_of(v, scale, offset) {
-        return Ok(counts);
+    match counts_of(v, layout.scale_m[axis], layout.offset_m[axis]) {
+        Some(counts) => Ok(counts),
+        None => Err(beyond_las(v, axis, layout, index)),
     }
+}
+
+/// Why coordinate `v` on `axis` of point `index` cannot be stored.
+#[cold]
+#[inline(never)]
+fn beyond_las(v: f64, axis: usize, layout: &PointLayout, index: usize) -> Error {
+    let (scale, offset) = (layout.scale_m[axis], layout.offset_m[axis]);
     let name = ["X", "Y", "Z"][axis];
     if !v.is_finite() {
-        return Err(Error::Invalid(format!(
-            "LAS point {index} of the chunk: {name} is {v}"
-        )));
+        return Error::Invalid(format!("LAS point {index} of the chunk: {name} is {v}"));
     }
     let reach_m = f64::from(i32::MAX) * scale;
-    Err(Error::Invalid(format!(
+    Error::Invalid(format!(
         "LAS point {index} of the chunk: {name} = {v} m is {:.3} m beyond what LAS can store with \
          scale {scale} m and offset {offset} m (offset +- {reach_m:.3} m); set the offset near \
          the data (e.g. the first point rounded) or use a coarser scale",
         (v - offset).abs() - reach_m
-    )))
+    ))
 }
 
 fn check_returns(p: &LasPoint, index: usize) -> Result<()> {

@@ -6,7 +6,8 @@
 //! - [`encode_points`] turns a chunk of [`LasPoint`]s into raw record bytes and [`ChunkStats`]
 //!   (pure, allocation-free per point, safe to run on many threads at once);
 //! - [`LasWriter`] appends encoded chunks in order to a temporary file in the destination
-//!   directory, merges their stats, writes the header last, fsyncs and renames atomically.
+//!   directory (with direct I/O where the filesystem allows: `io::direct`), merges their
+//!   stats, writes the header last, fsyncs and renames atomically.
 //!
 //! The header and VLR framing is serialised with the `las` crate's raw types; point records use
 //! our own encoder for speed. Output bytes depend only on the points and the configuration (no
@@ -23,6 +24,7 @@ pub use encode::{encode_points, stats_of_records, ChunkStats, LasPoint};
 pub use layout::{ExtraDim, ExtraType, GpsTimeConvention, PointLayout, FRACTION_SCALE};
 
 use crate::io::atomic::AtomicFile;
+use crate::io::direct::DirectWriter;
 use crate::{Error, Result};
 use header::{header_bytes, vlr_bytes, HEADER_SIZE};
 use layout::check_ascii_field;
@@ -89,7 +91,7 @@ pub struct LasSummary {
 pub struct LasWriter {
     path: PathBuf,
     config: LasWriterConfig,
-    file: AtomicFile,
+    file: AtomicFile<DirectWriter>,
     stats: ChunkStats,
     offset_to_points: u32,
     scratch: Vec<u8>,
@@ -101,7 +103,7 @@ impl LasWriter {
         let path = path.as_ref().to_path_buf();
         check_ascii_field("system identifier", &config.system_identifier, 0)?;
         let vlrs = vlr_bytes(&config)?;
-        let mut file = AtomicFile::with_capacity(&path, WRITE_BUFFER_BYTES)?;
+        let mut file = AtomicFile::<DirectWriter>::with_capacity(&path, WRITE_BUFFER_BYTES)?;
         file.write_all(&[0u8; HEADER_SIZE])?;
         file.write_all(&vlrs)?;
         let offset_to_points = u32::try_from(HEADER_SIZE + vlrs.len())
