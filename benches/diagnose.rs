@@ -40,6 +40,7 @@ fn main() {
     let p = config::load(&d.join("pipeline.toml"), &[]).unwrap();
     let req = Request {
         patches: d.join("survey/patches.csv"),
+        control_points: None,
         out_dir: d.join("diagnosis"),
     };
     let mut wall = Vec::new();

@@ -19,7 +19,8 @@ pub struct DiagnoseArgs {
     /// Reference planar patches (patch CSV); default diagnose.patches in the pipeline.
     #[arg(long)]
     patches: Option<PathBuf>,
-    /// Control points (not used yet: docs/diagnosis.md, "Not yet").
+    /// Control points (control-point CSV): flat retro-reflective targets found by intensity,
+    /// optional references besides the patches; default diagnose.control_points.
     #[arg(long)]
     control_points: Option<PathBuf>,
     /// Output folder (created if missing); default diagnose.out in the pipeline, else
@@ -32,15 +33,13 @@ pub struct DiagnoseArgs {
 }
 
 pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
-    if let Some(c) = &a.control_points {
-        bail!(
-            "--control-points {}: control points are not used by the diagnosis yet \
-             (docs/diagnosis.md, \"Not yet\"); diagnose with --patches",
-            c.display()
-        );
-    }
     let loaded = config::load(&a.pipeline, &a.set)?;
-    let Some(req) = Request::of(&loaded, a.patches.clone(), a.out.clone()) else {
+    let Some(req) = Request::of(
+        &loaded,
+        a.patches.clone(),
+        a.control_points.clone(),
+        a.out.clone(),
+    ) else {
         bail!(
             "{}: no reference patches: give --patches FILE or diagnose.patches",
             a.pipeline.display()
@@ -52,7 +51,7 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
         let (b, f) = (&d.gap.before, &d.gap.after);
         println!("verdict   {}", d.headline());
         println!(
-            "held out  chi2/dof {:.2} -> {:.2}, RMS {:.1} -> {:.1} mm, 95% coverage {:.0}% -> {:.0}% ({} returns)",
+            "held out  chi2/dof {:.2} -> {:.2}, RMS {:.1} -> {:.1} mm, 95% coverage {:.0}% -> {:.0}% ({} observations)",
             b.chi2_per_dof,
             f.chi2_per_dof,
             b.rms_m * 1e3,

@@ -92,7 +92,7 @@ pub fn run(a: &RunArgs, quiet: bool) -> Result<()> {
 pub fn validate(a: &ValidateArgs) -> Result<()> {
     let loaded = config::load(&a.pipeline, &a.set)?;
     pipeline::check_inputs(&loaded).with_context(|| format!("{}: inputs", a.pipeline.display()))?;
-    if let Some(req) = kinescan::app::diagnose::Request::of(&loaded, None, None) {
+    if let Some(req) = kinescan::app::diagnose::Request::of(&loaded, None, None, None) {
         kinescan::app::diagnose::check_collisions(&loaded, &req)?;
     }
     println!("{}: valid", a.pipeline.display());

@@ -79,6 +79,7 @@ pub fn diagnose_dir(dir: &Path) -> kinescan::Result<Diagnosis> {
     let p = config::load(&dir.join("pipeline.toml"), &[])?;
     let req = Request {
         patches: dir.join("survey/patches.csv"),
+        control_points: None,
         out_dir: dir.join("diagnosis"),
     };
     diagnose::run(&p, &req)

@@ -114,6 +114,12 @@ fn diagnose_passes(day: &LoadedDay, plan: &Plan, patches: &Path) -> Result<Vec<P
         let folder = out.join(format!("diagnosis_{}", p.name));
         let req = Request {
             patches: patches.to_path_buf(),
+            control_points: pipeline
+                .config
+                .diagnose
+                .as_ref()
+                .and_then(|d| d.control_points.as_ref())
+                .map(|c| c.to_path_buf()),
             out_dir: folder.clone(),
         };
         let d = diagnose::run(&pipeline, &req)?;

@@ -20,7 +20,6 @@ pub mod report;
 pub mod reprocess;
 pub mod select;
 
-use crate::io::patches::{read_patches, PlanarPatch};
 use crate::io::publish::publish_folder;
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
@@ -31,22 +30,26 @@ use std::path::{Path, PathBuf};
 pub struct Request {
     /// Reference planar patches (patch CSV).
     pub patches: PathBuf,
+    /// Control points (control-point CSV: target face centres), optional references.
+    pub control_points: Option<PathBuf>,
     /// Output folder (created if missing).
     pub out_dir: PathBuf,
 }
 
 impl Request {
-    /// The diagnosis of pipeline `p`: `patches` and `out_dir` when given (the command line),
-    /// else its `[diagnose]` table's `patches` and `out`; the folder defaults to `diagnosis`.
-    /// None without patches.
+    /// The diagnosis of pipeline `p`: `patches`, `control_points` and `out_dir` when given
+    /// (the command line), else its `[diagnose]` table's `patches`, `control_points` and
+    /// `out`; the folder defaults to `diagnosis`. None without patches.
     pub fn of(
         p: &LoadedPipeline,
         patches: Option<PathBuf>,
+        control_points: Option<PathBuf>,
         out_dir: Option<PathBuf>,
     ) -> Option<Self> {
         let section = p.config.diagnose.clone().unwrap_or_default();
         Some(Request {
             patches: patches.or(section.patches.map(PathBuf::from))?,
+            control_points: control_points.or(section.control_points.map(PathBuf::from)),
             out_dir: out_dir
                 .or(section.out.map(PathBuf::from))
                 .unwrap_or_else(|| PathBuf::from("diagnosis")),
@@ -82,14 +85,14 @@ struct Statistics {
 /// Covariates shown in plots (the leading ones of the tests).
 const PLOTTED_COVARIATES: usize = 3;
 
-/// Diagnoses pipeline `p` against the reference patches of `req`; writes the report files
-/// into `req.out_dir` and returns the report.
+/// Diagnoses pipeline `p` against the reference patches (and control points) of `req`;
+/// writes the report files into `req.out_dir` and returns the report.
 pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
     observe::check_pipeline(p)?;
     let cfg = p.config.diagnose.clone().unwrap_or_default();
     check_collisions(p, req)?;
-    let patches = read_patches(&req.patches)?;
-    let observed = observe::observe(p, &patches, &req.patches, &cfg)?;
+    let refs = observe::References::read(&req.patches, req.control_points.as_deref())?;
+    let observed = observe::observe(p, &refs, &cfg)?;
     let set = &observed.set;
     let stats = statistics(set, &cfg)?;
     let names = output_names();
@@ -99,7 +102,7 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
         "diagnosis",
         report::DIAGNOSIS_JSON,
         &names,
-        |dir| write_outputs(p, req, &patches, observed, stats, dir),
+        |dir| write_outputs(p, req, &refs, observed, stats, dir),
     )
 }
 
@@ -108,7 +111,7 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
 fn write_outputs(
     p: &LoadedPipeline,
     req: &Request,
-    patches: &[PlanarPatch],
+    refs: &observe::References,
     observed: observe::Observed,
     stats: Statistics,
     dir: &Path,
@@ -124,7 +127,7 @@ fn write_outputs(
         (report::Verdict::Effect, _) => {
             let lines = reprocess::set_lines(&p.config, &stats.applied)?;
             let corrected = reprocess::corrected(p, &lines, &req.out_dir)?;
-            let again = observe::observe(&corrected, patches, &req.patches, &cfg)?;
+            let again = observe::observe(&corrected, refs, &cfg)?;
             let held = references_of(&again.set, &held_out_ids);
             let (after, normalised) = gap_of(&again.set, &held)?;
             reprocess::write_pipeline(
@@ -223,6 +226,9 @@ fn held_out_values(set: &model::ObservationSet, refs: &[usize], values: &[f64]) 
 pub fn check_collisions(p: &LoadedPipeline, req: &Request) -> Result<()> {
     let mut inputs = crate::pipeline::files::inputs(p);
     inputs.push(("--patches".into(), req.patches.clone()));
+    if let Some(c) = &req.control_points {
+        inputs.push(("--control-points".into(), c.clone()));
+    }
     let names = output_names();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     crate::io::paths::check_collisions(&inputs, &crate::io::paths::in_out_dir(&req.out_dir, &names))

@@ -321,6 +321,26 @@ impl Diagnosis {
             self.split.fit.len(),
             self.split.held_out.len()
         );
+        if c.control_points_read > 0 {
+            let _ = writeln!(
+                s,
+                "\nControl points: {} returns on the targets of {} of {} points, {} visits \
+                 observed ({} centroid observations), {} returns in visits left out ({} not \
+                 flat). Points without a visit: {}.",
+                c.on_targets,
+                c.control_points_read - c.control_points_without_observations.len(),
+                c.control_points_read,
+                c.target_visits,
+                c.target_observations,
+                c.target_returns_unused,
+                c.target_visits_not_flat,
+                if c.control_points_without_observations.is_empty() {
+                    "none".to_string()
+                } else {
+                    c.control_points_without_observations.join(", ")
+                }
+            );
+        }
         s
     }
 }

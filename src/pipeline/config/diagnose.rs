@@ -12,6 +12,10 @@ pub struct DiagnoseConfig {
     /// Reference planar patches (patch CSV).
     #[serde(default)]
     pub patches: Option<ConfigPath>,
+    /// Control points (control-point CSV: target face centres), optional references found by
+    /// intensity (docs/diagnosis.md, "Control points").
+    #[serde(default)]
+    pub control_points: Option<ConfigPath>,
     /// Output folder of the diagnosis.
     #[serde(default)]
     pub out: Option<ConfigPath>,
@@ -40,6 +44,20 @@ pub struct DiagnoseConfig {
     /// At most this many returns of a visit are kept, evenly spaced in time.
     #[serde(default = "default_max_per_visit")]
     pub max_per_visit: usize,
+    /// A return at least this bright (raw intensity) within `target_radius_m` of a control
+    /// point is a return on its target.
+    #[serde(default = "default_target_min_intensity")]
+    pub target_min_intensity: u16,
+    /// Search radius about a control point for its target's returns (m).
+    #[serde(default = "default_target_radius_m")]
+    pub target_radius_m: f64,
+    /// Target visits with fewer returns are left out.
+    #[serde(default = "default_target_min_returns")]
+    pub target_min_returns: usize,
+    /// A target visit whose returns lie further than this (rms, m) from their best plane is not
+    /// a flat target and is left out.
+    #[serde(default = "default_target_flatness_m")]
+    pub target_flatness_m: f64,
     /// Seed of the split of the references into fit and held-out halves.
     #[serde(default = "default_diagnose_seed")]
     pub seed: u64,
@@ -78,6 +96,18 @@ fn default_min_per_visit() -> usize {
 fn default_max_per_visit() -> usize {
     400
 }
+fn default_target_min_intensity() -> u16 {
+    60000
+}
+fn default_target_radius_m() -> f64 {
+    0.5
+}
+fn default_target_min_returns() -> usize {
+    8
+}
+fn default_target_flatness_m() -> f64 {
+    0.02
+}
 fn default_diagnose_seed() -> u64 {
     1
 }
@@ -94,6 +124,8 @@ impl DiagnoseConfig {
             ("diagnose.max_visit_s", self.max_visit_s),
             ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
             ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
+            ("diagnose.target_radius_m", self.target_radius_m),
+            ("diagnose.target_flatness_m", self.target_flatness_m),
         ];
         require_positive(positive)?;
         if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
@@ -109,6 +141,10 @@ impl DiagnoseConfig {
                 self.min_per_visit, self.max_per_visit
             );
             return Err(refuse("diagnose.max_per_visit", problem));
+        }
+        if self.target_min_returns < 3 {
+            let problem = format!("must be >= 3, got {}", self.target_min_returns);
+            return Err(refuse("diagnose.target_min_returns", problem));
         }
         if !(self.alpha > 0.0 && self.alpha < 0.5) {
             let v = self.alpha;

@@ -5,7 +5,8 @@ use crate::pipeline::report::RejectReason;
 use std::collections::BTreeMap;
 
 /// What happened to every return read: `returns_read` = sum of `rejected` + `off_patches` +
-/// `off_plane` + `on_patches`; `on_patches` = `in_short_visits` + `thinned` + `observations`.
+/// `off_plane` + `on_patches` + `on_targets`; `on_patches` = `in_short_visits` + `thinned` +
+/// `observations`; `on_targets` = `target_returns_unused` + `target_returns_used`.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct ObserveCounts {
     /// Returns read from every profile file.
@@ -28,6 +29,22 @@ pub struct ObserveCounts {
     pub patches_read: usize,
     /// Patch ids without any observation.
     pub patches_without_observations: Vec<String>,
+    /// On a control point's target (bright, near the point; taken before the patches).
+    pub on_targets: u64,
+    /// On a target, in a visit left out (fewer than `target_min_returns`, or not flat).
+    pub target_returns_unused: u64,
+    /// On a target, in an observed visit (their centroid is the observation).
+    pub target_returns_used: u64,
+    /// Target visits observed.
+    pub target_visits: u64,
+    /// Target visits left out as not flat (`target_flatness_m`).
+    pub target_visits_not_flat: u64,
+    /// Centroid observations of the target visits (one to three per visit).
+    pub target_observations: u64,
+    /// Control points read (0 without a control-point file).
+    pub control_points_read: usize,
+    /// Control point ids without any observation.
+    pub control_points_without_observations: Vec<String>,
 }
 
 /// The observations of a survey and the account of every return.

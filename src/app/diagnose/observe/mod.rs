@@ -11,13 +11,15 @@
 
 mod counts;
 mod patch_index;
+mod targets;
 
 pub use counts::{ObserveCounts, Observed};
 
 use super::model::{Covariates, Effect, Observation, ObservationSet, Side, Visit};
 use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
 use crate::georef::{ReturnTerms, Sensor};
-use crate::io::patches::PlanarPatch;
+use crate::io::patches::{read_patches, PlanarPatch};
+use crate::io::points::{read_control_points, ControlPoint};
 use crate::io::profiles::{ProfileFile, RawReturn};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
 use crate::pipeline::prepare::{open_profiles, PreparedInput};
@@ -26,11 +28,12 @@ use crate::timing::ScannerClock;
 use crate::trajectory::{PoseCursor, Trajectory};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
-use nalgebra::Vector3;
-use patch_index::{PatchFrame, PatchIndex, Place};
+use nalgebra::{Matrix3, Vector3};
+use patch_index::{PatchIndex, Place};
 use rayon::prelude::*;
-use std::collections::BTreeMap;
-use std::path::Path;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+use targets::{TargetIndex, TargetVisit};
 
 /// Returns per parallel work item of the first pass.
 const CHUNK_RETURNS: usize = 1 << 15;
@@ -53,61 +56,155 @@ pub fn check_pipeline(p: &LoadedPipeline) -> Result<()> {
     Ok(())
 }
 
-/// Observes every return of pipeline `p` that falls on one of `patches` (read from
-/// `patches_path`, named in errors).
-pub fn observe(
-    p: &LoadedPipeline,
-    patches: &[PlanarPatch],
-    patches_path: &Path,
-    opts: &DiagnoseConfig,
-) -> Result<Observed> {
+/// What a survey is checked against: reference patches and, optionally, control points.
+#[derive(Debug, Clone)]
+pub struct References {
+    /// The patch file (named in errors).
+    pub patches_path: PathBuf,
+    /// Its patches.
+    pub patches: Vec<PlanarPatch>,
+    /// The control-point file, when given (named in errors).
+    pub control_points_path: Option<PathBuf>,
+    /// Its control points (none without the file).
+    pub control_points: Vec<ControlPoint>,
+}
+
+impl References {
+    /// Reads the patch file and the control-point file; an id used in both is refused (the
+    /// report and the split name references by id).
+    pub fn read(patches_path: &Path, control_points_path: Option<&Path>) -> Result<Self> {
+        let patches = read_patches(patches_path)?;
+        let control_points = match control_points_path {
+            Some(path) => read_control_points(path)?,
+            None => Vec::new(),
+        };
+        let patch_ids: BTreeSet<&str> = patches.iter().map(|p| p.id.as_str()).collect();
+        if let Some(both) = control_points
+            .iter()
+            .find(|c| patch_ids.contains(c.id.as_str()))
+        {
+            let path = control_points_path.expect("control points come from a file");
+            let problem = format!(
+                "id {:?} is also a patch id in {}: references are named by id, so patch and \
+                 control-point ids must differ",
+                both.id,
+                patches_path.display()
+            );
+            return Err(Error::bad_file(path, problem));
+        }
+        Ok(References {
+            patches_path: patches_path.to_path_buf(),
+            patches,
+            control_points_path: control_points_path.map(Path::to_path_buf),
+            control_points,
+        })
+    }
+}
+
+/// Observes every return of pipeline `p` that falls on one of the reference patches or on a
+/// control point's target.
+pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> Result<Observed> {
     check_pipeline(p)?;
     let c = &p.config;
     let traj_opts = c.trajectory.options();
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let files = open_profiles(c, staging.path())?;
-    let index = PatchIndex::new(patches, opts);
+    let index = PatchIndex::new(&refs.patches, opts);
+    let targets = TargetIndex::new(&refs.control_points, opts);
     let mut counts = ObserveCounts {
-        patches_read: patches.len(),
+        patches_read: refs.patches.len(),
+        control_points_read: refs.control_points.len(),
         ..Default::default()
     };
-    let mut hits = Vec::new();
+    let (mut hits, mut target_hits) = (Vec::new(), Vec::new());
     for (pass, input) in files.iter().enumerate() {
         let model = ReturnModel::new(p, &traj, &input.file)?;
-        let on = first_pass(&model, &input.file, &index, &mut counts);
-        hits.extend(on.into_iter().map(|h| (pass, h)));
+        let found = first_pass(&model, &input.file, (&index, &targets), &mut counts);
+        hits.extend(found.patches.into_iter().map(|h| (pass, h)));
+        target_hits.extend(found.targets.into_iter().map(|h| (pass, h)));
     }
+    check_found(refs, opts, &hits, &target_hits)?;
+    let rule = VisitRule::patches(opts);
+    let (visits, short, thinned) = group_visits(hits, &rule);
+    counts.in_short_visits = short;
+    counts.thinned = thinned;
+    let (target_visits, short, _) = group_visits(target_hits, &VisitRule::targets(opts));
+    counts.target_returns_unused = short;
+    let mut set = second_pass(p, &traj, &files, &refs.patches, &index, visits, &mut counts)?;
+    let refs_ctx = (&refs.control_points[..], &targets);
+    add_targets(
+        p,
+        &traj,
+        &files,
+        refs_ctx,
+        target_visits,
+        &mut set,
+        &mut counts,
+    )?;
+    let without = |id: &String| !set.reference_ids.contains(id);
+    counts.patches_without_observations = refs
+        .patches
+        .iter()
+        .map(|p| &p.id)
+        .filter(|id| without(id))
+        .cloned()
+        .collect();
+    counts.control_points_without_observations = refs
+        .control_points
+        .iter()
+        .map(|c| &c.id)
+        .filter(|id| without(id))
+        .cloned()
+        .collect();
+    Ok(Observed { set, counts })
+}
+
+/// Refuses references no return reaches: patches none lies on, control points (when given)
+/// none is found near.
+fn check_found(
+    refs: &References,
+    opts: &DiagnoseConfig,
+    hits: &[(usize, Hit)],
+    target_hits: &[(usize, Hit)],
+) -> Result<()> {
     if hits.is_empty() {
         let problem = format!(
             "no return of the survey falls on any of its {} patches (inside the rectangle less \
              {} m, within {} m of the plane): the patches are not where the survey scanned, \
              or in another datum",
-            patches.len(),
+            refs.patches.len(),
             opts.edge_margin_m,
             opts.plane_tolerance_m
         );
-        return Err(Error::bad_file(patches_path, problem));
+        return Err(Error::bad_file(&refs.patches_path, problem));
     }
-    let visits = group_visits(hits, opts, &mut counts);
-    let set = second_pass(p, &traj, &files, patches, &index, visits, &mut counts)?;
-    counts.patches_without_observations = patches
-        .iter()
-        .filter(|pt| !set.reference_ids.contains(&pt.id))
-        .map(|pt| pt.id.clone())
-        .collect();
-    Ok(Observed { set, counts })
+    if let (Some(path), true) = (&refs.control_points_path, target_hits.is_empty()) {
+        let problem = format!(
+            "no return of the survey is found on any of its {} control points' targets (at \
+             least diagnose.target_min_intensity = {} bright, within diagnose.target_radius_m \
+             = {} m of the point): the points are not targets the survey scanned, or in \
+             another datum",
+            refs.control_points.len(),
+            opts.target_min_intensity,
+            opts.target_radius_m
+        );
+        return Err(Error::bad_file(path, problem));
+    }
+    Ok(())
 }
 
-/// One return on a patch, from the first pass.
+/// One return on a reference (a patch or a control point's target), from the first pass.
 #[derive(Debug, Clone, Copy)]
 struct Hit {
     index: usize,
+    /// Index of the patch or control point.
     patch: usize,
     t_s: f64,
 }
 
-/// A visit before its observations are computed: patch, pass and the kept returns.
+/// A visit before its observations are computed: reference (patch or control point), pass
+/// and the kept returns.
 struct PendingVisit {
     patch: usize,
     pass: usize,
@@ -261,15 +358,23 @@ struct ChunkTally {
     off_patches: u64,
     off_plane: u64,
     hits: Vec<Hit>,
+    target_hits: Vec<Hit>,
 }
 
-/// Georeferences every return of one file and keeps those on a patch (in file order).
+/// The returns of one file on the references, in file order.
+struct Found {
+    patches: Vec<Hit>,
+    targets: Vec<Hit>,
+}
+
+/// Georeferences every return of one file and keeps those on a control point's target (first)
+/// or on a patch.
 fn first_pass(
     model: &ReturnModel,
     file: &ProfileFile,
-    index: &PatchIndex,
+    (index, targets): (&PatchIndex, &TargetIndex),
     counts: &mut ObserveCounts,
-) -> Vec<Hit> {
+) -> Found {
     let n = file.len();
     let tallies: Vec<ChunkTally> = (0..n.div_ceil(CHUNK_RETURNS))
         .into_par_iter()
@@ -277,24 +382,37 @@ fn first_pass(
             let mut tally = ChunkTally::default();
             let mut cursor = model.cursor();
             for i in k * CHUNK_RETURNS..((k + 1) * CHUNK_RETURNS).min(n) {
-                match model.locate(&file.get(i), &mut cursor) {
-                    Err(reason) => *tally.rejected.entry(reason).or_default() += 1,
-                    Ok(loc) => match index.place(&loc.x_e) {
-                        Place::Off => tally.off_patches += 1,
-                        Place::OffPlane => tally.off_plane += 1,
-                        Place::On(patch) => tally.hits.push(Hit {
-                            index: i,
-                            patch,
-                            t_s: loc.t_s,
-                        }),
-                    },
+                let r = file.get(i);
+                let loc = match model.locate(&r, &mut cursor) {
+                    Err(reason) => {
+                        *tally.rejected.entry(reason).or_default() += 1;
+                        continue;
+                    }
+                    Ok(loc) => loc,
+                };
+                let hit = |patch| Hit {
+                    index: i,
+                    patch,
+                    t_s: loc.t_s,
+                };
+                if let Some(t) = targets.find(&loc.x_e, r.intensity) {
+                    tally.target_hits.push(hit(t));
+                    continue;
+                }
+                match index.place(&loc.x_e) {
+                    Place::Off => tally.off_patches += 1,
+                    Place::OffPlane => tally.off_plane += 1,
+                    Place::On(patch) => tally.hits.push(hit(patch)),
                 }
             }
             tally
         })
         .collect();
     counts.returns_read += n as u64;
-    let mut hits = Vec::new();
+    let mut found = Found {
+        patches: Vec::new(),
+        targets: Vec::new(),
+    };
     for t in tallies {
         for (reason, k) in t.rejected {
             *counts.rejected.entry(reason).or_default() += k;
@@ -302,41 +420,68 @@ fn first_pass(
         counts.off_patches += t.off_patches;
         counts.off_plane += t.off_plane;
         counts.on_patches += t.hits.len() as u64;
-        hits.extend(t.hits);
+        counts.on_targets += t.target_hits.len() as u64;
+        found.patches.extend(t.hits);
+        found.targets.extend(t.target_hits);
     }
-    hits
+    found
 }
 
-/// Splits the hits of one pass into visits, drops short ones and thins long ones; `hits` are
-/// tagged with their pass.
-fn group_visits(
-    hits: Vec<(usize, Hit)>,
-    opts: &DiagnoseConfig,
-    counts: &mut ObserveCounts,
-) -> Vec<PendingVisit> {
+/// How returns on one reference in one pass make visits.
+struct VisitRule {
+    gap_s: f64,
+    max_s: f64,
+    min_returns: usize,
+    max_returns: usize,
+}
+
+impl VisitRule {
+    fn patches(opts: &DiagnoseConfig) -> Self {
+        VisitRule {
+            gap_s: opts.visit_gap_s,
+            max_s: opts.max_visit_s,
+            min_returns: opts.min_per_visit,
+            max_returns: opts.max_per_visit,
+        }
+    }
+
+    /// A target visit keeps all its returns: their centroid is the observation.
+    fn targets(opts: &DiagnoseConfig) -> Self {
+        VisitRule {
+            min_returns: opts.target_min_returns,
+            max_returns: usize::MAX,
+            ..VisitRule::patches(opts)
+        }
+    }
+}
+
+/// Splits the hits of each reference and pass into visits, drops short ones and thins long
+/// ones; `hits` are tagged with their pass. Gives the visits and the numbers of returns in
+/// short visits and thinned out.
+fn group_visits(hits: Vec<(usize, Hit)>, rule: &VisitRule) -> (Vec<PendingVisit>, u64, u64) {
     let mut by_patch: BTreeMap<(usize, usize), Vec<Hit>> = BTreeMap::new();
     for (pass, h) in hits {
         by_patch.entry((h.patch, pass)).or_default().push(h);
     }
-    let mut visits = Vec::new();
+    let (mut visits, mut short, mut thinned) = (Vec::new(), 0, 0);
     for ((patch, pass), mut list) in by_patch {
         list.sort_by(|a, b| a.t_s.total_cmp(&b.t_s).then(a.index.cmp(&b.index)));
         let mut start = 0;
         for k in 1..=list.len() {
             let split = k == list.len()
-                || list[k].t_s - list[k - 1].t_s > opts.visit_gap_s
-                || list[k].t_s - list[start].t_s > opts.max_visit_s;
+                || list[k].t_s - list[k - 1].t_s > rule.gap_s
+                || list[k].t_s - list[start].t_s > rule.max_s;
             if !split {
                 continue;
             }
             let run = &list[start..k];
             start = k;
-            if run.len() < opts.min_per_visit {
-                counts.in_short_visits += run.len() as u64;
+            if run.len() < rule.min_returns {
+                short += run.len() as u64;
                 continue;
             }
-            let kept = thin_evenly(run, opts.max_per_visit);
-            counts.thinned += (run.len() - kept.len()) as u64;
+            let kept = thin_evenly(run, rule.max_returns);
+            thinned += (run.len() - kept.len()) as u64;
             visits.push(PendingVisit {
                 patch,
                 pass,
@@ -344,7 +489,7 @@ fn group_visits(
             });
         }
     }
-    visits
+    (visits, short, thinned)
 }
 
 /// At most `max` of `run`, evenly spaced by position (first one kept).
@@ -410,6 +555,69 @@ fn second_pass(
     Ok(set)
 }
 
+/// Adds the observations of the target visits to `set`, their control points as references
+/// after the patches (in control-point file order).
+fn add_targets(
+    p: &LoadedPipeline,
+    traj: &Trajectory,
+    files: &[PreparedInput],
+    (points, targets): (&[ControlPoint], &TargetIndex),
+    visits: Vec<PendingVisit>,
+    set: &mut ObservationSet,
+    counts: &mut ObserveCounts,
+) -> Result<()> {
+    if targets.is_empty() {
+        return Ok(());
+    }
+    let opts = p.config.diagnose.clone().unwrap_or_default();
+    let models = files
+        .iter()
+        .map(|input| ReturnModel::new(p, traj, &input.file))
+        .collect::<Result<Vec<_>>>()?;
+    let first_visit = set.visits.len();
+    let outcomes: Vec<Result<Option<TargetVisit>>> = visits
+        .par_iter()
+        .map(|pv| {
+            targets::observe_target(&models[pv.pass], &files[pv.pass].file, targets, pv, &opts)
+        })
+        .collect();
+    let mut observed = Vec::new();
+    for (pv, outcome) in visits.iter().zip(outcomes) {
+        match outcome? {
+            None => {
+                counts.target_returns_unused += pv.hits.len() as u64;
+                counts.target_visits_not_flat += 1;
+            }
+            Some((visit, obs)) => {
+                counts.target_returns_used += pv.hits.len() as u64;
+                observed.push((pv.patch, visit, obs));
+            }
+        }
+    }
+    let used: BTreeSet<usize> = observed.iter().map(|(point, _, _)| *point).collect();
+    let reference_of: BTreeMap<usize, usize> = used
+        .iter()
+        .enumerate()
+        .map(|(k, &point)| (point, set.reference_ids.len() + k))
+        .collect();
+    set.reference_ids
+        .extend(used.iter().map(|&point| points[point].id.clone()));
+    for (v, (point, mut visit, mut obs)) in observed.into_iter().enumerate() {
+        let reference = reference_of[&point];
+        visit.reference = reference;
+        for o in &mut obs {
+            o.reference = reference;
+            o.visit = first_visit + v;
+            o.covariates.reference_id = reference;
+        }
+        counts.target_observations += obs.len() as u64;
+        set.visits.push(visit);
+        set.observations.extend(obs);
+    }
+    counts.target_visits = (set.visits.len() - first_visit) as u64;
+    Ok(())
+}
+
 /// The observations of one visit and its navigation covariance.
 fn observe_visit(
     model: &ReturnModel,
@@ -422,7 +630,8 @@ fn observe_visit(
     let frame = &index.frames[pv.patch];
     let (t_first, t_last) = (pv.hits[0].t_s, pv.hits[pv.hits.len() - 1].t_s);
     let t_mid = 0.5 * (t_first + t_last);
-    let nav_cov = visit_nav_cov(model.traj, t_mid, frame)
+    let survey_ned = frame.normal_n * frame.normal_n.transpose() * frame.sigma_m.powi(2);
+    let nav_cov = visit_nav_cov(model.traj, t_mid, &survey_ned)
         .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
     let mut cursor = model.cursor();
     let mut obs = Vec::with_capacity(pv.hits.len());
@@ -435,12 +644,22 @@ fn observe_visit(
                 reason.describe(),
             )
         })?;
+        let n_e = frame.axes_e.row(2).transpose();
         let cov = Covariates {
             reference_id: reference,
             pass: pv.pass,
-            ..covariates(&loc, model, frame, &r)
+            ..covariates(&loc, model, &n_e, &r)
         };
-        obs.push(observation(&loc, model, frame, &r, (reference, visit), cov));
+        let ids = (reference, visit);
+        obs.push(observation_along(
+            &loc,
+            model,
+            &n_e,
+            &frame.centre_e,
+            &r,
+            ids,
+            cov,
+        ));
     }
     let v = Visit {
         reference,
@@ -450,12 +669,13 @@ fn observe_visit(
     Ok((v, obs))
 }
 
-/// `P_v`: SMRMSG variances at `t_mid` plus the patch's survey variance along its normal
-/// (a plane offset along `n` is indistinguishable from an INS position error along `n`).
+/// `P_v`: SMRMSG variances at `t_mid` plus `survey_ned` (m^2, NED) in the position block: a
+/// patch's survey variance along its normal (a plane offset along `n` is indistinguishable
+/// from an INS position error along `n`).
 fn visit_nav_cov(
     traj: &Trajectory,
     t_mid: f64,
-    frame: &PatchFrame,
+    survey_ned: &Matrix3<f64>,
 ) -> Result<[[f64; 6]; 6], RejectReason> {
     let mut cursor = traj.sigma_cursor().ok_or(RejectReason::OutsideAccuracy)?;
     let s = cursor.at(t_mid).map_err(RejectReason::from)?;
@@ -466,27 +686,25 @@ fn visit_nav_cov(
             s.att_rph_rad[k - 3].powi(2)
         }
     });
-    let s2 = frame.sigma_m.powi(2);
-    let n = &frame.normal_n;
     let p = std::array::from_fn(|i| {
         std::array::from_fn(|j| {
             let diag = if i == j { nav_var[i] } else { 0.0 };
-            let patch = if i < 3 && j < 3 {
-                s2 * n[i] * n[j]
+            let survey = if i < 3 && j < 3 {
+                survey_ned[(i, j)]
             } else {
                 0.0
             };
-            diag + patch
+            diag + survey
         })
     });
     Ok(p)
 }
 
-/// Where and how a return was measured (`reference_id` and `pass` are set by the caller).
-fn covariates(loc: &Located, model: &ReturnModel, frame: &PatchFrame, r: &RawReturn) -> Covariates {
+/// Where and how a return was measured on a surface of unit normal `n_e` (ECEF)
+/// (`reference_id` and `pass` are set by the caller).
+fn covariates(loc: &Located, model: &ReturnModel, n_e: &Vector3<f64>, r: &RawReturn) -> Covariates {
     let beam_b = model.sensor.r_s_to_b * loc.terms.u_s();
     let beam_e = loc.terms.r_n_to_e * (loc.terms.r_b_to_n * beam_b);
-    let n_e = frame.axes_e.row(2).transpose();
     let w = loc.pose.omega_b_radps.map(f64::to_degrees);
     let (_, _, heading) = roll_pitch_heading(&loc.pose.q_b_to_n);
     Covariates {
@@ -509,12 +727,14 @@ fn covariates(loc: &Located, model: &ReturnModel, frame: &PatchFrame, r: &RawRet
     }
 }
 
-/// The observation of one located return: residual, white variance, navigation gradient and
-/// effect signatures, all from `n^T J` with `J` the analytic Jacobian of the uncertainty model.
-fn observation(
+/// The observation of one located return along the unit vector `n_e` (ECEF) from `centre_e`:
+/// residual, white variance, navigation gradient and effect signatures, all from `n^T J` with
+/// `J` the analytic Jacobian of the uncertainty model.
+fn observation_along(
     loc: &Located,
     model: &ReturnModel,
-    frame: &PatchFrame,
+    n_e: &Vector3<f64>,
+    centre_e: &Vector3<f64>,
     r: &RawReturn,
     ids: (usize, usize),
     covariates: Covariates,
@@ -527,7 +747,6 @@ fn observation(
         r.range_m,
     );
     let j = geom.jacobian_e();
-    let n_e = frame.axes_e.row(2).transpose();
     let g: [f64; N_INPUTS] = std::array::from_fn(|k| n_e.dot(&j.column(k)));
     let w = &model.white;
     let var_white_m2 = (g[Input::Alpha as usize] * w.alpha_rad).powi(2)
@@ -536,7 +755,7 @@ fn observation(
     Observation {
         reference: ids.0,
         visit: ids.1,
-        residual_m: n_e.dot(&(loc.x_e - frame.centre_e)),
+        residual_m: n_e.dot(&(loc.x_e - centre_e)),
         var_white_m2,
         nav_gradient: std::array::from_fn(|k| g[k]),
         signature: Effect::ALL.map(|e| signature(e, &g, loc, model)),
