@@ -142,21 +142,14 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         &mut set,
         &mut counts,
     )?;
-    let without = |id: &String| !set.reference_ids.contains(id);
-    counts.patches_without_observations = refs
-        .patches
-        .iter()
-        .map(|p| &p.id)
-        .filter(|id| without(id))
-        .cloned()
-        .collect();
-    counts.control_points_without_observations = refs
-        .control_points
-        .iter()
-        .map(|c| &c.id)
-        .filter(|id| without(id))
-        .cloned()
-        .collect();
+    let without = |ids: &mut dyn Iterator<Item = &String>| -> Vec<String> {
+        ids.filter(|id| !set.reference_ids.contains(id))
+            .cloned()
+            .collect()
+    };
+    counts.patches_without_observations = without(&mut refs.patches.iter().map(|p| &p.id));
+    counts.control_points_without_observations =
+        without(&mut refs.control_points.iter().map(|c| &c.id));
     Ok(Observed { set, counts })
 }
 
@@ -310,6 +303,21 @@ impl<'a> ReturnModel<'a> {
             TimeModel::HardwareReturn => 0.0,
             _ => self.clock.period_s * self.clock.mirror.direction.sign() / std::f64::consts::TAU,
         }
+    }
+
+    /// Georeferences record `index` of `file` again (the first pass located it); an error
+    /// naming the record if it no longer can be.
+    fn relocate(
+        &self,
+        file: &ProfileFile,
+        index: usize,
+        cursor: &mut PoseCursor,
+    ) -> Result<(RawReturn, Located)> {
+        let r = file.get(index);
+        let loc = self.locate(&r, cursor).map_err(|reason| {
+            Error::bad_record(file.path(), format!("record {index}"), reason.describe())
+        })?;
+        Ok((r, loc))
     }
 
     /// Georeferences `r` with the configured values, or says why it cannot be.
@@ -636,14 +644,7 @@ fn observe_visit(
     let mut cursor = model.cursor();
     let mut obs = Vec::with_capacity(pv.hits.len());
     for h in &pv.hits {
-        let r = file.get(h.index);
-        let loc = model.locate(&r, &mut cursor).map_err(|reason| {
-            Error::bad_record(
-                file.path(),
-                format!("record {}", h.index),
-                reason.describe(),
-            )
-        })?;
+        let (r, loc) = model.relocate(file, h.index, &mut cursor)?;
         let n_e = frame.axes_e.row(2).transpose();
         let cov = Covariates {
             reference_id: reference,

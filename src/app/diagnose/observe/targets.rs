@@ -140,14 +140,7 @@ fn locate_all(model: &ReturnModel, file: &ProfileFile, hits: &[Hit]) -> Result<V
     let mut cursor = model.cursor();
     hits.iter()
         .map(|h| {
-            let raw = file.get(h.index);
-            let loc = model.locate(&raw, &mut cursor).map_err(|reason| {
-                Error::bad_record(
-                    file.path(),
-                    format!("record {}", h.index),
-                    reason.describe(),
-                )
-            })?;
+            let (raw, loc) = model.relocate(file, h.index, &mut cursor)?;
             Ok(OnTarget { raw, loc })
         })
         .collect()
