@@ -642,25 +642,28 @@ fn observe_visit(
     let nav_cov = visit_nav_cov(model.traj, t_mid, &survey_ned)
         .map_err(|reason| Error::Invalid(format!("visit at {t_first} s: {}", reason.describe())))?;
     let mut cursor = model.cursor();
-    let mut obs = Vec::with_capacity(pv.hits.len());
-    for h in &pv.hits {
-        let (r, loc) = model.relocate(file, h.index, &mut cursor)?;
-        let n_e = frame.axes_e.row(2).transpose();
+    let located = pv
+        .hits
+        .iter()
+        .map(|h| model.relocate(file, h.index, &mut cursor))
+        .collect::<Result<Vec<_>>>()?;
+    let n_e = frame.axes_e.row(2).transpose();
+    let pairs = located.iter().map(|(r, loc)| (r, loc));
+    let ranges = denoised_ranges_m(pairs, model, &n_e, &frame.centre_e);
+    let mut obs = Vec::with_capacity(located.len());
+    for ((r, loc), range_m) in located.iter().zip(ranges) {
         let cov = Covariates {
             reference_id: reference,
             pass: pv.pass,
-            ..covariates(&loc, model, &n_e, &r)
+            ..covariates(loc, model, &n_e, r)
         };
         let ids = (reference, visit);
-        obs.push(observation_along(
-            &loc,
-            model,
-            &n_e,
-            &frame.centre_e,
-            &r,
-            ids,
-            cov,
-        ));
+        let at = Surface {
+            axis_e: &n_e,
+            centre_e: &frame.centre_e,
+            range_m,
+        };
+        obs.push(observation_along(loc, model, &at, r, ids, cov));
     }
     let v = Visit {
         reference,
@@ -701,11 +704,51 @@ fn visit_nav_cov(
     Ok(p)
 }
 
+/// The beam of a located return (unit vector, ECEF).
+fn beam_e(loc: &Located, model: &ReturnModel) -> Vector3<f64> {
+    let beam_b = model.sensor.r_s_to_b * loc.terms.u_s();
+    loc.terms.r_n_to_e * (loc.terms.r_b_to_n * beam_b)
+}
+
+/// Beams closer than this to grazing (|cos| of the angle to the normal) keep their measured
+/// range in [`denoised_ranges_m`].
+const MIN_COS_INCIDENCE: f64 = 0.05;
+
+/// The range (m) each return of one visit would have measured without its own noise: its
+/// measured range less its residual's departure from the visit's mean residual, along the beam
+/// (`rho - (r - mean r) / (n . u)`) on the surface of unit normal `n_e` through `centre_e`.
+/// Signatures and gradients are evaluated there: at the measured range they would carry the
+/// return's own range noise, which is also in its residual (errors in variables: on ground
+/// patches alone a range-scale fit of -32% came from it; docs/diagnosis.md, "Observations").
+/// What the visit shares (navigation error, an effect's offset) stays in the mean.
+fn denoised_ranges_m<'a>(
+    located: impl Iterator<Item = (&'a RawReturn, &'a Located)> + Clone,
+    model: &ReturnModel,
+    n_e: &Vector3<f64>,
+    centre_e: &Vector3<f64>,
+) -> Vec<f64> {
+    let residual = |loc: &Located| n_e.dot(&(loc.x_e - centre_e));
+    let (sum, count) = located
+        .clone()
+        .fold((0.0, 0.0), |(s, n), (_, l)| (s + residual(l), n + 1.0));
+    let mean = sum / count;
+    located
+        .map(|(r, loc)| {
+            let cos = n_e.dot(&beam_e(loc, model));
+            if cos.abs() < MIN_COS_INCIDENCE {
+                r.range_m
+            } else {
+                r.range_m - (residual(loc) - mean) / cos
+            }
+        })
+        .collect()
+}
+
 /// Where and how a return was measured on a surface of unit normal `n_e` (ECEF)
 /// (`reference_id` and `pass` are set by the caller).
 fn covariates(loc: &Located, model: &ReturnModel, n_e: &Vector3<f64>, r: &RawReturn) -> Covariates {
     let beam_b = model.sensor.r_s_to_b * loc.terms.u_s();
-    let beam_e = loc.terms.r_n_to_e * (loc.terms.r_b_to_n * beam_b);
+    let beam_e = beam_e(loc, model);
     let w = loc.pose.omega_b_radps.map(f64::to_degrees);
     let (_, _, heading) = roll_pitch_heading(&loc.pose.q_b_to_n);
     Covariates {
@@ -728,24 +771,35 @@ fn covariates(loc: &Located, model: &ReturnModel, n_e: &Vector3<f64>, r: &RawRet
     }
 }
 
-/// The observation of one located return along the unit vector `n_e` (ECEF) from `centre_e`:
-/// residual, white variance, navigation gradient and effect signatures, all from `n^T J` with
-/// `J` the analytic Jacobian of the uncertainty model.
+/// Along which axis from which reference point a return is observed, and at which range its
+/// Jacobian is evaluated.
+struct Surface<'a> {
+    /// Unit vector (ECEF) the residual is measured along.
+    axis_e: &'a Vector3<f64>,
+    /// The reference point (ECEF, m): a patch centre or a control point.
+    centre_e: &'a Vector3<f64>,
+    /// Range (m) at which the Jacobian is evaluated ([`denoised_ranges_m`]).
+    range_m: f64,
+}
+
+/// The observation of one located return along `at.axis_e` from `at.centre_e`: residual,
+/// white variance, navigation gradient and effect signatures, all from `n^T J` with `J` the
+/// analytic Jacobian of the uncertainty model at range `at.range_m`.
 fn observation_along(
     loc: &Located,
     model: &ReturnModel,
-    n_e: &Vector3<f64>,
-    centre_e: &Vector3<f64>,
+    at: &Surface,
     r: &RawReturn,
     ids: (usize, usize),
     covariates: Covariates,
 ) -> Observation {
+    let n_e = at.axis_e;
     let geom = PointGeometry::from_pose(
         &loc.pose,
         &model.sensor,
         loc.alpha_rad,
         r.beta_rad,
-        r.range_m,
+        at.range_m,
     );
     let j = geom.jacobian_e();
     let g: [f64; N_INPUTS] = std::array::from_fn(|k| n_e.dot(&j.column(k)));
@@ -756,10 +810,10 @@ fn observation_along(
     Observation {
         reference: ids.0,
         visit: ids.1,
-        residual_m: n_e.dot(&(loc.x_e - centre_e)),
+        residual_m: n_e.dot(&(loc.x_e - at.centre_e)),
         var_white_m2,
         nav_gradient: std::array::from_fn(|k| g[k]),
-        signature: Effect::ALL.map(|e| signature(e, &g, loc, model)),
+        signature: Effect::ALL.map(|e| signature(e, &g, loc, model, at.range_m)),
         covariates,
     }
 }
@@ -767,8 +821,14 @@ fn observation_along(
 /// How far a return moves along `n` (m) per unit of effect `e` present in the data but not in
 /// the configuration: `-n^T d x_e / d p` with `p` the configured value the effect corrects
 /// (georeferencing with `p` too small by `delta` puts the point at `x(p_true) - J delta`).
-/// `g` = `n^T J` over the uncertainty model's inputs.
-fn signature(e: Effect, g: &[f64; N_INPUTS], loc: &Located, model: &ReturnModel) -> f64 {
+/// `g` = `n^T J` over the uncertainty model's inputs, `range_m` the range it is evaluated at.
+fn signature(
+    e: Effect,
+    g: &[f64; N_INPUTS],
+    loc: &Located,
+    model: &ReturnModel,
+    range_m: f64,
+) -> f64 {
     use Input as I;
     let deg = std::f64::consts::PI / 180.0;
     let d_time = g[I::ClockTime as usize];
@@ -785,7 +845,7 @@ fn signature(e: Effect, g: &[f64; N_INPUTS], loc: &Located, model: &ReturnModel)
         Effect::LeverArmY => g[I::LeverY as usize],
         Effect::LeverArmZ => g[I::LeverZ as usize],
         Effect::RangeZero => g[I::RangeZero as usize],
-        Effect::RangeScale => g[I::Range as usize] * loc.terms.range_total_m * 1e-6,
+        Effect::RangeScale => g[I::Range as usize] * model.sensor.range_total_m(range_m) * 1e-6,
         Effect::EncoderOffset => (g[I::Beta as usize] + d_time * model.dt_dbeta()) * deg,
         Effect::Cone => g[I::Alpha as usize] * deg,
         Effect::HeadingOffset => g[I::InsHeading as usize] * deg,

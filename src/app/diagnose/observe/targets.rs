@@ -11,7 +11,10 @@
 //! two edges in units of `s`; over the phase and over `W / s` its variance is `s^2 / 24`
 //! (docs/diagnosis.md gives the derivation and the check on the simulator).
 
-use super::{covariates, observation_along, visit_nav_cov, Hit, PendingVisit, ReturnModel};
+use super::{
+    beam_e, covariates, denoised_ranges_m, observation_along, visit_nav_cov, Hit, PendingVisit,
+    ReturnModel, Surface,
+};
 use crate::app::diagnose::model::{Covariates, Observation, Visit, N_EFFECTS};
 use crate::geo::ellipsoid::{geodetic_to_ecef, r_enu_to_e, Geodetic};
 use crate::io::points::ControlPoint;
@@ -83,6 +86,8 @@ pub(super) type TargetVisit = (Visit, Vec<Observation>);
 struct OnTarget {
     raw: RawReturn,
     loc: super::Located,
+    /// Range (m) its Jacobian is evaluated at (set once the face is known).
+    range_m: f64,
 }
 
 /// Observes one visit of target `pv.patch` (an index into `index`); none when its returns do
@@ -106,6 +111,14 @@ pub(super) fn observe_target(
     let mid = &returns[returns.len() / 2];
     let normal = facing_the_scanner(normal, model, mid);
     let (h, v) = face_axes(&normal, &index.up_e[pv.patch]);
+    let centre = &index.centres_e[pv.patch];
+    let mut returns = returns;
+    let pairs = returns.iter().map(|r| (&r.raw, &r.loc));
+    let ranges = denoised_ranges_m(pairs, model, &normal, centre);
+    for (r, range_m) in returns.iter_mut().zip(ranges) {
+        r.range_m = range_m;
+    }
+    let mid = &returns[returns.len() / 2];
     let t_mean = returns.iter().map(|r| r.loc.t_s).sum::<f64>() / n;
     let nav_cov = visit_nav_cov(model.traj, t_mean, &Matrix3::zeros()).map_err(|reason| {
         Error::Invalid(format!("target visit at {t_mean} s: {}", reason.describe()))
@@ -116,7 +129,6 @@ pub(super) fn observe_target(
         pass: pv.pass,
         ..covariates(&mid.loc, model, &normal, &mid.raw)
     };
-    let centre = &index.centres_e[pv.patch];
     let survey_var = index.sigma_m[pv.patch].powi(2);
     let steps = Steps::of(&returns);
     let mut obs = vec![centroid(
@@ -141,7 +153,8 @@ fn locate_all(model: &ReturnModel, file: &ProfileFile, hits: &[Hit]) -> Result<V
     hits.iter()
         .map(|h| {
             let (raw, loc) = model.relocate(file, h.index, &mut cursor)?;
-            Ok(OnTarget { raw, loc })
+            let range_m = raw.range_m;
+            Ok(OnTarget { raw, loc, range_m })
         })
         .collect()
 }
@@ -165,9 +178,7 @@ fn best_plane(returns: &[OnTarget], mean: &Vector3<f64>) -> (Vector3<f64>, f64) 
 
 /// `normal` turned towards the scanner (against the beam of `r`).
 fn facing_the_scanner(normal: Vector3<f64>, model: &ReturnModel, r: &OnTarget) -> Vector3<f64> {
-    let beam_b = model.sensor.r_s_to_b * r.loc.terms.u_s();
-    let beam_e = r.loc.terms.r_n_to_e * (r.loc.terms.r_b_to_n * beam_b);
-    if normal.dot(&beam_e) > 0.0 {
+    if normal.dot(&beam_e(&r.loc, model)) > 0.0 {
         -normal
     } else {
         normal
@@ -262,7 +273,12 @@ fn centroid(
         covariates: cov,
     };
     for r in returns {
-        let o = observation_along(&r.loc, model, axis, centre, &r.raw, ids, cov);
+        let at = Surface {
+            axis_e: axis,
+            centre_e: centre,
+            range_m: r.range_m,
+        };
+        let o = observation_along(&r.loc, model, &at, &r.raw, ids, cov);
         sum.residual_m += o.residual_m / n;
         sum.var_white_m2 += o.var_white_m2 / (n * n);
         for (a, b) in sum.nav_gradient.iter_mut().zip(o.nav_gradient) {
