@@ -402,6 +402,21 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
 /// the uninterrupted run's time, and once more to its end: at least `interrupted` of the five
 /// runs were stopped, and the LAS files and counts are those of `whole`.
 pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), interrupted: usize) {
+    assert_kills_resume_when(whole, killed, interrupted, |rng, run_s, _| {
+        std::thread::sleep(Duration::from_secs_f64(
+            rng.range(window.0, window.1) * run_s,
+        ));
+    });
+}
+
+/// [`assert_kills_resume`], each run killed once `wait` returns: given the seeded generator,
+/// the uninterrupted run's time (s) and the killed day's output folder.
+fn assert_kills_resume_when(
+    whole: &Path,
+    killed: &Path,
+    interrupted: usize,
+    wait: impl Fn(&mut Lcg, f64, &Path),
+) {
     let out = |day: &Path| day.with_extension("");
     let started = Instant::now();
     ok(kinescan(&["day", whole.to_str().unwrap(), "-q"]));
@@ -415,9 +430,7 @@ pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), inte
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        std::thread::sleep(Duration::from_secs_f64(
-            rng.range(window.0, window.1) * run_s,
-        ));
+        wait(&mut rng, run_s, &out(killed));
         if k % 2 == 0 {
             child.kill().unwrap(); // SIGKILL
         } else {
@@ -464,7 +477,20 @@ fn a_day_killed_inside_passes_of_several_units_resumes_to_identical_bytes() {
     let layout = "{ kind = \"per_pass\" }";
     let whole = day_file(d, "whole", "whole", layout, &passes_of_several_units());
     let killed = day_file(d, "killed", "killed", layout, &passes_of_several_units());
-    assert_kills_resume(&whole, &killed, (0.2, 0.85), 3);
+    // Each run killed once it has journalled a unit, a seeded moment into the next one: inside
+    // a pass (its units write into its file), whatever the machine's speed.
+    let lines = |out: &Path| {
+        let journal = std::fs::read(out.join("journal.jsonl")).unwrap_or_default();
+        journal.iter().filter(|&&b| b == b'\n').count()
+    };
+    assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out| {
+        let before = lines(out);
+        let started = Instant::now();
+        while lines(out) == before && started.elapsed().as_secs_f64() < 10.0 * run_s {
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        std::thread::sleep(Duration::from_secs_f64(rng.range(0.0, 0.05) * run_s));
+    });
 }
 
 /// A day whose units ran one after another (each into its pass's file) and the same day whose
@@ -523,6 +549,34 @@ fn pass_files_written_unit_after_unit_are_the_cluster_s_merge() {
             report_counts(&out)
         );
     }
+}
+
+/// A template that splits its output by point count still gives one file a pass, the same as
+/// without the split (its units wrote one file each before, and refused the second part).
+#[test]
+fn a_template_splitting_its_output_gives_one_file_a_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let template = std::fs::read_to_string(d.join("template.toml")).unwrap();
+    let split = "[output]\nsplit = \"max_points\"\nmax_points_per_file = 5000\n";
+    let split = template.replacen("[output]\n", split, 1);
+    std::fs::write(d.join("template_split.toml"), split).unwrap();
+    let layout = "{ kind = \"per_pass\" }";
+    let plain = day_file(d, "plain", "plain", layout, &passes_of_several_units());
+    let day = day_file(d, "split", "split", layout, &passes_of_several_units());
+    let text = std::fs::read_to_string(&day).unwrap();
+    std::fs::write(
+        &day,
+        text.replacen("template.toml", "template_split.toml", 1),
+    )
+    .unwrap();
+    for day in [&plain, &day] {
+        ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    }
+    let files = las_files(&d.join("split"));
+    assert_eq!(files.len(), 2);
+    assert!(files == las_files(&d.join("plain")), "split files differ");
 }
 
 /// The units of a pass, run one after another, write their records straight into the pass's

@@ -141,6 +141,7 @@ impl LasWriter {
         previous_end: Option<u64>,
     ) -> Result<LasWriter> {
         let path = path.as_ref().to_path_buf();
+        check_ascii_field("system identifier", &config.system_identifier, 0)?;
         let at = match previous_end {
             Some(end) => end,
             None => offset_of_points(&vlr_bytes(&config)?)?,
@@ -220,15 +221,16 @@ impl LasWriter {
 
 /// Completes the LAS file `path` written in parts ([`LasWriter::part`]) with `config`, once
 /// every part is in: `parts` are their summaries, in file order. Writes the header made from
-/// them (the header [`LasWriter::finish`] writes for the same points) and the VLRs, and makes
-/// the file durable; gives its summary. A header already there is not written again (a file
-/// completed before and published stays as it is); the file is refused when its size is not
-/// that of its parts.
+/// them (the header [`LasWriter::finish`] writes for the same points) and the VLRs, and fsyncs
+/// the file (its parts were made durable by their writers); gives its summary. A header
+/// already there is not written again (a file completed before and published stays as it
+/// is); the file is refused when its size is not that of its parts.
 pub fn finish_parts(
     path: &Path,
     config: &LasWriterConfig,
     parts: &[LasSummary],
 ) -> Result<LasSummary> {
+    check_ascii_field("system identifier", &config.system_identifier, 0)?;
     let vlrs = vlr_bytes(config)?;
     let offset_to_points = offset_of_points(&vlrs)?;
     let summary = summary_of_parts(path, &config.layout, parts, offset_to_points);
@@ -287,16 +289,9 @@ fn summary_of_parts(
             *a += b;
         }
         for k in 0..3 {
-            all.min_m[k] = if first {
-                p.min_m[k]
-            } else {
-                all.min_m[k].min(p.min_m[k])
-            };
-            all.max_m[k] = if first {
-                p.max_m[k]
-            } else {
-                all.max_m[k].max(p.max_m[k])
-            };
+            let (min, max) = (p.min_m[k], p.max_m[k]);
+            all.min_m[k] = if first { min } else { all.min_m[k].min(min) };
+            all.max_m[k] = if first { max } else { all.max_m[k].max(max) };
         }
         all.gps_time_range = match (all.gps_time_range, p.gps_time_range) {
             (Some((a, b)), Some((c, d))) => Some((a.min(c), b.max(d))),
