@@ -8,7 +8,7 @@
 //! as they are split.
 
 use super::config::{Layout, LoadedDay};
-use super::journal::{map_pass_file, Entry};
+use super::journal::Entry;
 use super::plan::{pass_pipeline, Plan};
 use super::quality::{SigmaHistograms, SigmaOffsets, SigmaStats};
 use super::units::{pass_file, unit_path};
@@ -141,7 +141,10 @@ fn records_of(out: &Path, e: &Entry, pass: &str) -> Result<(memmap2::Mmap, Range
         return Ok((map, layout.offset_to_points..len));
     };
     let file = pass_file(out, pass);
-    let map = map_pass_file(&file)?;
+    let opened = std::fs::File::open(&file).map_err(|e| Error::io(&file, e))?;
+    // SAFETY: read-only; pass files are written only by a process running the day in plan
+    // order, which holds the output stem's lock, as the merge does.
+    let map = unsafe { memmap2::Mmap::map(&opened) }.map_err(|e| Error::io(&file, e))?;
     let at = start as usize..end as usize;
     if map.len() < at.end {
         let problem = format!(
