@@ -151,6 +151,47 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     f.commit()
 }
 
+/// Writes a copy of the file `from` to `to` atomically (copied in the kernel where it can).
+pub fn copy_atomic(from: &Path, to: &Path) -> Result<()> {
+    let mut source = File::open(from).map_err(|e| Error::io(from, e))?;
+    let mut copy = AtomicFile::create(to)?;
+    std::io::copy(&mut source, copy.writer()).map_err(|e| Error::io(to, e))?;
+    copy.commit()
+}
+
+/// Opens the existing file `path` to be written in place (a file made of parts, written one
+/// after another, possibly by several processes: `io::direct::PartWriter`). When the file has
+/// other names (a hard link: an output published from it by `OutputSet::stage_file`), it is
+/// first replaced by a copy of itself ([`copy_atomic`]), so the other names keep their bytes.
+pub fn open_in_place(path: &Path) -> Result<File> {
+    let io = |e| Error::io(path, e);
+    let meta = std::fs::metadata(path).map_err(io)?;
+    #[cfg(unix)]
+    if std::os::unix::fs::MetadataExt::nlink(&meta) > 1 {
+        copy_atomic(path, path)?;
+    }
+    #[cfg(not(unix))]
+    let _ = meta;
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true).write(true).open(path).map_err(io)
+}
+
+/// Creates `path` anew, empty, for writing in place: an earlier file of that name is unlinked
+/// first (other names of it keep their bytes). The caller makes the name durable
+/// ([`sync_dir`]) once the content is.
+pub fn create_in_place(path: &Path) -> Result<File> {
+    let io = |e| Error::io(path, e);
+    match std::fs::remove_file(path) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(e)),
+        _ => {}
+    }
+    let mut options = std::fs::OpenOptions::new();
+    options.read(true).write(true).create_new(true);
+    #[cfg(unix)]
+    std::os::unix::fs::OpenOptionsExt::mode(&mut options, 0o666);
+    options.open(path).map_err(io)
+}
+
 /// Serialises `value` as pretty JSON into `path` atomically.
 pub fn write_json<T: serde::Serialize + ?Sized>(path: &Path, value: &T) -> Result<()> {
     let json = serde_json::to_vec_pretty(value)

@@ -3,12 +3,15 @@
 //! page cache (the kernel's write copy cost as much CPU as encoding the records) and no
 //! gigabyte of dirty pages left for the final fsync. Where the filesystem refuses direct I/O
 //! (at open, or on an unaligned write) it falls back to ordinary writes of the same bytes.
+//! [`PartWriter`]: the same writes into a file made of parts, each written in place after the
+//! previous one (a day's pass file, one work unit after another).
 
-use super::atomic::TempWriter;
+use super::atomic::{create_in_place, open_in_place, parent_dir, sync_dir, TempWriter};
+use crate::{Error, Result};
 use std::fs::File;
 use std::io;
 use std::os::unix::fs::FileExt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Alignment of direct writes (memory address, file offset, length): the page size, a
 /// multiple of every common logical block size.
@@ -33,6 +36,28 @@ pub struct DirectWriter {
 }
 
 impl DirectWriter {
+    /// A writer of `file` (at `path`) whose first byte goes to byte `offset` of the file. The
+    /// bytes of the block before `offset` are read into the buffer (zeros beyond the end of the
+    /// file) and written back unchanged with the first block, so every write stays aligned.
+    fn at(file: File, path: &Path, buffer_bytes: usize, offset: u64) -> io::Result<Self> {
+        let mut w = Self::wrap(file, path, buffer_bytes)?;
+        let first = offset / ALIGN as u64 * ALIGN as u64;
+        let before = (offset - first) as usize;
+        let block = &mut w.storage[w.start..w.start + before];
+        let mut read = 0;
+        while read < before {
+            match w.file.read_at(&mut block[read..], first + read as u64) {
+                Ok(0) => break, // the end of the file: the buffer's zeros stand for the rest
+                Ok(n) => read += n,
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(e),
+            }
+        }
+        w.flushed = first;
+        w.len = before;
+        Ok(w)
+    }
+
     fn buffer(&mut self) -> &mut [u8] {
         &mut self.storage[self.start..self.start + self.capacity]
     }
@@ -149,15 +174,69 @@ impl TempWriter for DirectWriter {
 
     fn into_file(mut self) -> io::Result<File> {
         let len = self.flushed + self.len as u64;
-        // The last partial block goes out padded with zeros, then the file is cut to length.
+        // The last partial block goes out padded with zeros, then the file is cut to length
+        // (a part written in place also drops what an earlier, longer file held beyond it).
         let padded = self.len.div_ceil(ALIGN) * ALIGN;
         let tail = self.len;
         self.buffer()[tail..padded].fill(0);
         self.flush_blocks(padded)?;
-        if self.flushed != len {
+        if self.file.metadata()?.len() != len {
             self.file.set_len(len)?;
         }
         Ok(self.file)
+    }
+}
+
+/// One part of a file made of parts written in place, one after another (possibly by
+/// different processes), each after the bytes of the parts before it: the records of a day's
+/// work unit in its pass's file. A part is written with direct I/O like a [`DirectWriter`]
+/// temporary; [`commit`](PartWriter::commit) cuts the file at the part's end and makes it
+/// durable. Nothing makes a part atomic: the caller records which parts are complete (a
+/// journal) and publishes the whole file once it is (`OutputSet::stage_file`).
+pub struct PartWriter {
+    path: PathBuf,
+    writer: DirectWriter,
+    fresh: bool,
+}
+
+impl PartWriter {
+    /// Starts a part of the file `path` at byte `at`, with a buffer of about `buffer_bytes`.
+    /// `first`: the file is created anew (an earlier file of that name is unlinked, other
+    /// names of it keep their bytes) and the bytes before `at` are zeros until written by the
+    /// caller; otherwise the existing file is written in place (copied first when other names
+    /// link it: `io::atomic::open_in_place`), its bytes before `at` kept.
+    pub fn open(path: &Path, at: u64, first: bool, buffer_bytes: usize) -> Result<Self> {
+        let file = if first {
+            create_in_place(path)?
+        } else {
+            open_in_place(path)?
+        };
+        let writer =
+            DirectWriter::at(file, path, buffer_bytes, at).map_err(|e| Error::io(path, e))?;
+        Ok(PartWriter {
+            path: path.to_path_buf(),
+            writer,
+            fresh: first,
+        })
+    }
+
+    /// Appends all of `bytes` to the part.
+    pub fn write_all(&mut self, bytes: &[u8]) -> Result<()> {
+        crate::interrupt::check()?;
+        let result = self.writer.write_all(bytes);
+        result.map_err(|e| Error::io(&self.path, e))
+    }
+
+    /// Writes what is buffered, cuts the file at the part's end, fsyncs it (and its folder for
+    /// a file created anew).
+    pub fn commit(self) -> Result<()> {
+        let io = |e| Error::io(&self.path, e);
+        let file = self.writer.into_file().map_err(io)?;
+        file.sync_all().map_err(io)?;
+        if self.fresh {
+            sync_dir(parent_dir(&self.path)).map_err(io)?;
+        }
+        Ok(())
     }
 }
 
@@ -224,5 +303,68 @@ mod tests {
             drop(w.into_file().unwrap());
             assert_eq!(std::fs::read(&path).unwrap(), expect, "buffer {buffer}");
         }
+    }
+
+    /// A file written in parts, each by a writer of its own starting where the previous part
+    /// ended (unaligned, empty parts too), holds the bytes written; a part written again cuts
+    /// the file at its end; a first part makes the file anew and a later part copies a linked
+    /// file first, so another name of the file keeps its bytes.
+    #[test]
+    fn parts_written_in_place_give_the_bytes_written() {
+        let dir = tempfile::tempdir().unwrap();
+        let data: Vec<u8> = (0..5 * ALIGN as u32 + 777)
+            .map(|k| (k * 13 % 253) as u8)
+            .collect();
+        let cuts = [1272, 1272, 5000, 8192, 8193, 15000, data.len()];
+        // The bytes before the first part are the caller's (a LAS header): zeros until then.
+        let expect = |end: usize| {
+            let mut e = data[..end].to_vec();
+            e[..cuts[0]].fill(0);
+            e
+        };
+        let path = dir.path().join("pass.las");
+        // With direct I/O (a buffer of a block, then of several), and as on a filesystem that
+        // refuses it.
+        let write = |from: usize, to: usize, buffer: usize| {
+            let first = from == cuts[0];
+            let mut w = PartWriter::open(&path, from as u64, first, buffer.max(ALIGN)).unwrap();
+            if buffer == 0 {
+                w.writer.direct = None;
+            }
+            for piece in data[from..to].chunks(999) {
+                w.write_all(piece).unwrap();
+            }
+            w.commit().unwrap();
+        };
+        for buffer in [ALIGN, 3 * ALIGN, 1 << 20, 0] {
+            for pair in cuts.windows(2) {
+                write(pair[0], pair[1], buffer);
+            }
+            assert_eq!(
+                std::fs::read(&path).unwrap(),
+                expect(data.len()),
+                "{buffer}"
+            );
+            write(cuts[2], cuts[3], buffer);
+            assert_eq!(std::fs::read(&path).unwrap(), expect(cuts[3]), "{buffer}");
+        }
+        let published = dir.path().join("published.las");
+        std::fs::hard_link(&path, &published).unwrap();
+        write(cuts[3], cuts[4], ALIGN);
+        assert_eq!(std::fs::read(&path).unwrap(), expect(cuts[4]));
+        assert_eq!(
+            std::fs::read(&published).unwrap(),
+            expect(cuts[3]),
+            "link written"
+        );
+        std::fs::remove_file(&published).unwrap();
+        std::fs::hard_link(&path, &published).unwrap();
+        write(cuts[0], cuts[2], ALIGN);
+        assert_eq!(std::fs::read(&path).unwrap(), expect(cuts[2]));
+        assert_eq!(
+            std::fs::read(&published).unwrap(),
+            expect(cuts[4]),
+            "link written"
+        );
     }
 }

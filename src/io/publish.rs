@@ -6,7 +6,7 @@
 //!
 //! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
 
-use super::atomic::{create_temp_dir, parent_dir, sync_dir, AtomicFile};
+use super::atomic::{copy_atomic, create_temp_dir, parent_dir, sync_dir};
 use crate::{Error, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -53,10 +53,7 @@ impl OutputSet {
         if std::fs::hard_link(from, &staged).is_ok() {
             return Ok(staged);
         }
-        let mut source = File::open(from).map_err(|e| Error::io(from, e))?;
-        let mut copy = AtomicFile::create(&staged)?;
-        std::io::copy(&mut source, copy.writer()).map_err(|e| Error::io(&staged, e))?;
-        copy.commit()?;
+        copy_atomic(from, &staged)?;
         Ok(staged)
     }
 

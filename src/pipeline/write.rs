@@ -9,8 +9,8 @@ use crate::geo::ellipsoid::{geodetic_to_ecef, Geodetic};
 use crate::geo::geoid::GeoidGrid;
 use crate::geo::projection::MapFrame;
 use crate::io::las::{
-    encode_points, stats_of_records, ChunkStats, GpsTimeConvention, LasPoint, LasSummary,
-    LasWriter, LasWriterConfig, PointLayout, SECONDS_PER_GPS_WEEK,
+    encode_points, finish_parts, stats_of_records, ChunkStats, GpsTimeConvention, LasPoint,
+    LasSummary, LasWriter, LasWriterConfig, PointLayout, SECONDS_PER_GPS_WEEK,
 };
 use crate::io::profiles::ProfileFile;
 use crate::trajectory::Trajectory;
@@ -77,6 +77,18 @@ impl SinkSettings {
             max_points: c.output.max_points_per_file.unwrap_or(u64::MAX),
         })
     }
+
+    /// The record layout of the files of these settings.
+    pub fn layout(&self) -> &PointLayout {
+        &self.config.layout
+    }
+
+    /// Completes the output file (`output.las`) written in parts by sinks of these settings
+    /// ([`LasSink::part`]) once every part is in, from the parts' summaries in file order:
+    /// its header (`io::las::finish_parts`). Gives the file's summary.
+    pub fn finish_parts(&self, parts: &[LasSummary]) -> Result<LasSummary> {
+        finish_parts(&self.las, &self.config, parts)
+    }
 }
 
 /// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",
@@ -103,6 +115,9 @@ fn creation_date(gps_week: Option<u32>, sow: f64) -> (u16, u16) {
 /// The open output file(s).
 pub struct LasSink {
     settings: SinkSettings,
+    /// `Some` for a sink writing one part of a file written in parts: where the previous
+    /// part ended (`None` for the first part).
+    part_after: Option<Option<u64>>,
     current: Option<LasWriter>,
     in_current: u64,
     parts: u32,
@@ -115,11 +130,24 @@ impl LasSink {
     pub fn new(settings: SinkSettings) -> Self {
         LasSink {
             settings,
+            part_after: None,
             current: None,
             in_current: 0,
             parts: 0,
             input: PathBuf::new(),
             done: Vec::new(),
+        }
+    }
+
+    /// A sink writing one part of the file `settings` names (`output.las`, not split), written
+    /// in parts (`io::las::LasWriter::part`): its records in place after those of the previous
+    /// part, which ended at byte `previous_end` (`None`: the first part). Its summary's
+    /// `file_bytes` is the byte where the part ends; [`SinkSettings::finish_parts`] completes
+    /// the file.
+    pub fn part(settings: SinkSettings, previous_end: Option<u64>) -> Self {
+        LasSink {
+            part_after: Some(previous_end),
+            ..LasSink::new(settings)
         }
     }
 
@@ -148,7 +176,15 @@ impl LasSink {
             let msg = "two profile files share a file stem, so per-input outputs would collide";
             return Err(Error::bad_file(path, msg));
         }
-        self.current = Some(LasWriter::create(&path, self.settings.config.clone())?);
+        let config = self.settings.config.clone();
+        self.current = Some(match self.part_after {
+            Some(previous_end) if self.parts == 0 => LasWriter::part(&path, config, previous_end)?,
+            Some(_) => {
+                let msg = "a part of a file written in parts is not split into files";
+                return Err(Error::bad_file(path, msg));
+            }
+            None => LasWriter::create(&path, config)?,
+        });
         self.parts += 1;
         self.in_current = 0;
         Ok(())
@@ -163,7 +199,7 @@ impl LasSink {
 
     /// The record layout every file of this sink uses.
     pub fn layout(&self) -> &PointLayout {
-        &self.settings.config.layout
+        self.settings.layout()
     }
 
     /// Writes encoded records in order, rolling to a new file at the point limit.

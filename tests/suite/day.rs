@@ -402,6 +402,21 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
 /// the uninterrupted run's time, and once more to its end: at least `interrupted` of the five
 /// runs were stopped, and the LAS files and counts are those of `whole`.
 pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), interrupted: usize) {
+    assert_kills_resume_when(whole, killed, interrupted, |rng, run_s, _| {
+        std::thread::sleep(Duration::from_secs_f64(
+            rng.range(window.0, window.1) * run_s,
+        ));
+    });
+}
+
+/// [`assert_kills_resume`], each run killed once `wait` returns: given the seeded generator,
+/// the uninterrupted run's time (s) and the killed day's output folder.
+fn assert_kills_resume_when(
+    whole: &Path,
+    killed: &Path,
+    interrupted: usize,
+    wait: impl Fn(&mut Lcg, f64, &Path),
+) {
     let out = |day: &Path| day.with_extension("");
     let started = Instant::now();
     ok(kinescan(&["day", whole.to_str().unwrap(), "-q"]));
@@ -415,9 +430,7 @@ pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), inte
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        std::thread::sleep(Duration::from_secs_f64(
-            rng.range(window.0, window.1) * run_s,
-        ));
+        wait(&mut rng, run_s, &out(killed));
         if k % 2 == 0 {
             child.kill().unwrap(); // SIGKILL
         } else {
@@ -434,13 +447,277 @@ pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), inte
     );
     ok(kinescan(&["day", killed.to_str().unwrap(), "-q"]));
     let (a, b) = (las_files(&out(whole)), las_files(&out(killed)));
-    assert_eq!(a.len(), PASSES.len());
+    let passes = report_counts(&out(whole))["passes"]
+        .as_array()
+        .unwrap()
+        .len();
+    assert_eq!(a.len(), passes);
     assert!(
         a == b,
         "resumed output differs from the uninterrupted run's"
     );
     assert_eq!(report_counts(&out(whole)), report_counts(&out(killed)));
     assert_counts_add_up(&out(killed));
+}
+
+/// Two passes of several units: `p12`, the profile files `p01` and `p02` (as two scanners'
+/// recordings of one pass, two units each), and `p03` (two units).
+fn passes_of_several_units() -> Vec<Pass> {
+    vec![
+        ("p12", &["p01.ksprof", "p02.ksprof"]),
+        ("p03", &["p03.ksprof"]),
+    ]
+}
+
+#[test]
+fn a_day_killed_inside_passes_of_several_units_resumes_to_identical_bytes() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let layout = "{ kind = \"per_pass\" }";
+    let whole = day_file(d, "whole", "whole", layout, &passes_of_several_units());
+    let killed = day_file(d, "killed", "killed", layout, &passes_of_several_units());
+    // Each run killed once it has journalled a unit, a seeded moment into the next one: inside
+    // a pass (its units write into its file), whatever the machine's speed.
+    let lines = |out: &Path| {
+        let journal = std::fs::read(out.join("journal.jsonl")).unwrap_or_default();
+        journal.iter().filter(|&&b| b == b'\n').count()
+    };
+    assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out| {
+        let before = lines(out);
+        let started = Instant::now();
+        while lines(out) == before && started.elapsed().as_secs_f64() < 10.0 * run_s {
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        std::thread::sleep(Duration::from_secs_f64(rng.range(0.0, 0.05) * run_s));
+    });
+}
+
+/// A day whose units ran one after another (each into its pass's file) and the same day whose
+/// units ran as a cluster runs them (in reverse order, each into a file of its own, then the
+/// merge) give the same files, in LAS and in LAZ.
+#[test]
+fn pass_files_written_unit_after_unit_are_the_cluster_s_merge() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let template = std::fs::read_to_string(d.join("template.toml")).unwrap();
+    let laz = template.replacen("[output]\n", "[output]\nformat = \"laz\"\n", 1);
+    std::fs::write(d.join("template_las.toml"), &template).unwrap();
+    std::fs::write(d.join("template_laz.toml"), laz).unwrap();
+    let layout = "{ kind = \"per_pass\" }";
+    for format in ["las", "laz"] {
+        let [single, cluster] = ["single", "cluster"].map(|name| {
+            let name = format!("{name}_{format}");
+            let day = day_file(d, &name, &name, layout, &passes_of_several_units());
+            let text = std::fs::read_to_string(&day).unwrap();
+            let template = format!("template = \"template_{format}.toml\"");
+            let text = text.replacen("template = \"template.toml\"", &template, 1);
+            std::fs::write(&day, text).unwrap();
+            day
+        });
+        ok(kinescan(&["day", single.to_str().unwrap(), "-q"]));
+        let day = cluster.to_str().unwrap();
+        ok(kinescan(&["day", day, "--plan"]));
+        let out = cluster.with_extension("");
+        let plan: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("plan.json")).unwrap()).unwrap();
+        for u in plan["units"].as_array().unwrap().iter().rev() {
+            ok(kinescan(&[
+                "day",
+                day,
+                "--unit",
+                u["id"].as_str().unwrap(),
+                "-q",
+            ]));
+        }
+        ok(kinescan(&["day", day, "--merge", "-q"]));
+        let files = |out: &Path| {
+            let mut names = file_names(out);
+            names.retain(|n| n.ends_with(&format!(".{format}")));
+            let bytes: Vec<Vec<u8>> = names
+                .iter()
+                .map(|n| std::fs::read(out.join(n)).unwrap())
+                .collect();
+            (names, bytes)
+        };
+        let (a, b) = (files(&single.with_extension("")), files(&out));
+        assert_eq!(a.0, ["p03", "p12"].map(|p| format!("{p}.{format}")));
+        assert!(a == b, "{format}: the cluster's merge differs");
+        assert_eq!(
+            report_counts(&single.with_extension("")),
+            report_counts(&out)
+        );
+    }
+}
+
+/// A template that splits its output by point count still gives one file a pass, the same as
+/// without the split (its units wrote one file each before, and refused the second part).
+#[test]
+fn a_template_splitting_its_output_gives_one_file_a_pass() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let template = std::fs::read_to_string(d.join("template.toml")).unwrap();
+    let split = "[output]\nsplit = \"max_points\"\nmax_points_per_file = 5000\n";
+    let split = template.replacen("[output]\n", split, 1);
+    std::fs::write(d.join("template_split.toml"), split).unwrap();
+    let layout = "{ kind = \"per_pass\" }";
+    let plain = day_file(d, "plain", "plain", layout, &passes_of_several_units());
+    let day = day_file(d, "split", "split", layout, &passes_of_several_units());
+    let text = std::fs::read_to_string(&day).unwrap();
+    std::fs::write(
+        &day,
+        text.replacen("template.toml", "template_split.toml", 1),
+    )
+    .unwrap();
+    for day in [&plain, &day] {
+        ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    }
+    let files = las_files(&d.join("split"));
+    assert_eq!(files.len(), 2);
+    assert!(files == las_files(&d.join("plain")), "split files differ");
+}
+
+/// The units of a pass, run one after another, write their records straight into the pass's
+/// file, which is published as it is; the states a kill (or a damaged disk) leaves in it,
+/// made exactly, resume to the same bytes, running again only the units whose records are not
+/// all there; the units a cluster runs after a kill are merged after the pass file's records;
+/// a unit written again after the day was published leaves the published file as it was.
+#[test]
+fn a_pass_written_unit_after_unit_resumes_from_the_states_a_kill_leaves() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    simulated_day(d);
+    let layout = "{ kind = \"per_pass\" }";
+    let day = day_file(d, "night", "night", layout, &passes_of_several_units());
+    let day = day.to_str().unwrap();
+    ok(kinescan(&["day", day, "-q"]));
+    let out = d.join("night");
+    let whole = las_files(&out);
+    assert_eq!(whole.len(), 2);
+    assert_eq!(
+        file_names(&out.join("units")),
+        ["p03.pass.las", "p12.pass.las"],
+        "a unit in a file of its own"
+    );
+    let pass_file = out.join("units/p12.pass.las");
+    let inode = |p: &Path| std::fs::metadata(p).unwrap().ino();
+    assert_eq!(inode(&out.join("p12.las")), inode(&pass_file), "copied");
+    let plan: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("plan.json")).unwrap()).unwrap();
+    let p12: Vec<String> = plan["units"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|u| u["id"].as_str().unwrap().to_string())
+        .filter(|id| id.starts_with("p12-"))
+        .collect();
+    assert_eq!(p12.len(), 4);
+    let range = |unit: &str| journal_range(&out, unit);
+    let resumed = |expected: usize| {
+        ok(kinescan(&["day", day, "-q"]));
+        assert!(las_files(&out) == whole, "resumed files differ");
+        assert_counts_add_up(&out);
+        let r: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+        assert_eq!(r["units_resumed"], expected);
+    };
+
+    // Killed in p12's third unit, some of its records written.
+    let [start, end] = range(&p12[2]);
+    forget(&out, &p12[2..]);
+    let f = std::fs::OpenOptions::new()
+        .write(true)
+        .open(&pass_file)
+        .unwrap();
+    f.set_len((start + end) / 2).unwrap();
+    resumed(4);
+    // Killed after the last unit's records were written, before its journal line.
+    forget(&out, &p12[3..]);
+    resumed(5);
+    // The second unit's records damaged: it and the units after it run again.
+    forget(&out, &[]);
+    let [start, _] = range(&p12[1]);
+    let mut bytes = std::fs::read(&pass_file).unwrap();
+    bytes[start as usize + 100] ^= 1;
+    std::fs::write(&pass_file, bytes).unwrap();
+    resumed(3);
+    // The units after a kill run on a cluster, each into a file of its own, then the merge.
+    forget(&out, &p12[2..]);
+    for unit in &p12[2..] {
+        ok(kinescan(&["day", day, "--unit", unit, "-q"]));
+        assert!(out.join(format!("units/{unit}.las")).is_file());
+    }
+    ok(kinescan(&["day", day, "--merge", "-q"]));
+    assert!(las_files(&out) == whole, "merged files differ");
+    assert_counts_add_up(&out);
+    // Back to a pass file written by all its units, published as it is.
+    forget(&out, &p12[2..]);
+    resumed(4);
+    assert_eq!(inode(&out.join("p12.las")), inode(&pass_file), "copied");
+    // Its last unit written again after the day was published (its journal line lost): the
+    // pass file is copied first, the published file keeps its bytes.
+    let kept = d.join("kept.las");
+    std::fs::hard_link(out.join("p12.las"), &kept).unwrap();
+    drop_journal_lines(&out, &p12[3..]);
+    resumed(5);
+    assert_ne!(
+        inode(&kept),
+        inode(&pass_file),
+        "the published file was written in place"
+    );
+    let p12_las = whole.iter().find(|(name, _)| name == "p12.las").unwrap();
+    assert!(
+        std::fs::read(&kept).unwrap() == p12_las.1,
+        "the published file changed"
+    );
+}
+
+/// The `range` of `unit`'s line in the journal of the day in `out`.
+fn journal_range(out: &Path, unit: &str) -> [u64; 2] {
+    let journal = std::fs::read_to_string(out.join("journal.jsonl")).unwrap();
+    let line = journal
+        .lines()
+        .rev()
+        .find(|l| l.contains(&format!("\"unit\":\"{unit}\"")));
+    let entry: serde_json::Value = serde_json::from_str(line.unwrap()).unwrap();
+    let r = entry["range"].as_array().unwrap();
+    [r[0].as_u64().unwrap(), r[1].as_u64().unwrap()]
+}
+
+/// Leaves the day in `out` as a kill before its merge would: the published files and the
+/// report gone, the journal lines of `units` dropped.
+fn forget(out: &Path, units: &[String]) {
+    for (name, _) in las_files(out) {
+        std::fs::remove_file(out.join(name)).unwrap();
+    }
+    std::fs::remove_file(out.join("day.report.json")).unwrap();
+    drop_journal_lines(out, units);
+}
+
+/// The journal of the day in `out` without the lines of `units`.
+fn drop_journal_lines(out: &Path, units: &[String]) {
+    let journal = std::fs::read_to_string(out.join("journal.jsonl")).unwrap();
+    let kept: Vec<&str> = journal
+        .lines()
+        .filter(|l| {
+            let entry: serde_json::Value = serde_json::from_str(l).unwrap();
+            !units.iter().any(|u| entry["unit"] == u.as_str())
+        })
+        .collect();
+    std::fs::write(out.join("journal.jsonl"), kept.join("\n") + "\n").unwrap();
+}
+
+/// The names of the files in `dir`, sorted.
+fn file_names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
 }
 
 #[test]

@@ -6,8 +6,8 @@
 use std::path::Path;
 
 use kinescan::io::las::{
-    encode_points, ChunkStats, ExtraDim, ExtraType, GpsTimeConvention, LasPoint, LasSummary,
-    LasWriter, LasWriterConfig, PointLayout, FRACTION_SCALE, MAX_EXTRA_DIMS,
+    encode_points, finish_parts, ChunkStats, ExtraDim, ExtraType, GpsTimeConvention, LasPoint,
+    LasSummary, LasWriter, LasWriterConfig, PointLayout, FRACTION_SCALE, MAX_EXTRA_DIMS,
 };
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -469,4 +469,65 @@ fn output_independent_of_chunking() {
     for f in &files {
         assert!(f == &files[0] && f == &direct, "chunking changed the bytes");
     }
+}
+
+/// A file written in parts (empty parts too, each by a writer of its own right after the
+/// previous part) and completed by `finish_parts` from the parts' summaries has the bytes and
+/// the summary of the file written whole. Completing it again writes nothing; a part written
+/// again after the file was published through a hard link leaves the published file as it
+/// was; a file whose size is not that of its parts is refused.
+#[test]
+fn a_file_written_in_parts_is_the_file_written_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let time = GpsTimeConvention::AdjustedStandard { gps_week: GPS_WEEK };
+    let pts = points(3_001, 6);
+    let whole_path = dir.path().join("whole.las");
+    let whole = write_file(&whole_path, config(time), &pts, 1000);
+    let path = dir.path().join("parts.las");
+    let cuts = [0, 0, 1, 700, 700, 2048, 3_001, 3_001];
+    let mut parts: Vec<LasSummary> = Vec::new();
+    for pair in cuts.windows(2) {
+        let previous_end = parts.last().map(|p| p.file_bytes);
+        let mut w = LasWriter::part(&path, config(time), previous_end).unwrap();
+        w.write_points(&pts[pair[0]..pair[1]]).unwrap();
+        parts.push(w.finish().unwrap());
+    }
+    let summary = finish_parts(&path, &config(time), &parts).unwrap();
+    assert_eq!(
+        summary,
+        LasSummary {
+            path: path.clone(),
+            ..whole.clone()
+        }
+    );
+    let whole_bytes = std::fs::read(&whole_path).unwrap();
+    assert!(std::fs::read(&path).unwrap() == whole_bytes, "bytes differ");
+
+    let modified = || std::fs::metadata(&path).unwrap().modified().unwrap();
+    let before = modified();
+    std::thread::sleep(std::time::Duration::from_millis(20));
+    finish_parts(&path, &config(time), &parts).unwrap();
+    assert_eq!(modified(), before, "a complete file written again");
+
+    let published = dir.path().join("published.las");
+    std::fs::hard_link(&path, &published).unwrap();
+    let mut w = LasWriter::part(&path, config(time), Some(parts[3].file_bytes)).unwrap();
+    w.write_points(&pts[700..701]).unwrap();
+    let short = w.finish().unwrap();
+    assert!(
+        std::fs::read(&published).unwrap() == whole_bytes,
+        "published file changed"
+    );
+    let mut cut = parts[..4].to_vec();
+    let err = finish_parts(&path, &config(time), &parts)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("parts.las") && err.contains("bytes"), "{err}");
+    cut.push(short);
+    let summary = finish_parts(&path, &config(time), &cut).unwrap();
+    assert_eq!(summary.point_count, 701);
+    assert!(
+        std::fs::read(&published).unwrap() == whole_bytes,
+        "published file changed"
+    );
 }

@@ -7,9 +7,12 @@
 //!    passes overlapping in time) before any work; clocks resolved (synchronised with
 //!    `[sync]`); passes cut into work units; `<out>/plan.json`. A restart reads the plan back.
 //! 3. **units** ([`units`]): each unit not yet in the journal ([`journal`]) georeferenced into
-//!    `<out>/units/<id>.las` (atomically), then journalled with its hash and counts.
+//!    `<out>/units/<id>.las` (atomically) or, run in plan order with a per-pass layout,
+//!    straight into its pass's file after the pass's previous unit; then journalled with its
+//!    hash and counts.
 //! 4. **merge** ([`merge`]): the day's LAS files (per pass or tiles) from the unit outputs in
-//!    plan order, and the day report, published as one set (`io::publish`).
+//!    plan order (a pass file written by its units only gets its header), and the day report,
+//!    published as one set (`io::publish`).
 
 pub mod config;
 pub mod journal;
@@ -26,13 +29,14 @@ use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
 use crate::pipeline::RunOptions;
 use crate::{Error, Result};
-use config::LoadedDay;
+use config::{Layout, LoadedDay};
 use journal::Entry;
 use plan::Plan;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use units::Target;
 
 /// What a `day` invocation does.
 #[derive(Debug, Clone, Default)]
@@ -142,7 +146,13 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             Some(p) => p,
             slot => slot.insert(plan::prepare_pass(&day, unit.pass)?),
         };
-        let entry = units::run_unit(&day, &plan, unit, None, pass, opts)?;
+        // One process runs the units in plan order: with a file per pass they go straight
+        // into it (a cluster's units finish in any order: each into its own file).
+        let target = match (step, day.config.day.layout) {
+            (Step::All, Layout::PerPass) => Target::in_order(&plan, unit, &done),
+            _ => Target::OwnFile,
+        };
+        let entry = units::run_unit(&day, &plan, unit, None, pass, target, opts)?;
         done.insert(unit.id.clone(), entry);
     }
     timings.insert("units".to_string(), started.elapsed().as_secs_f64());
@@ -184,16 +194,18 @@ fn correct_passes(
         };
         corrected = true;
         let mut prepared = None;
+        let name = &day.config.passes[k.pass].name;
         for unit in plan.units.iter().filter(|u| u.pass == k.pass) {
-            let entry = match verified(out, &journalled, &k.unit_id(unit)) {
-                Some(e) => e,
+            let journalled = journalled.get(&k.unit_id(unit));
+            let entry = match journalled.filter(|e| verified(out, e, name)) {
+                Some(e) => e.clone(),
                 None => {
                     crate::interrupt::check()?;
                     let pass = match &mut prepared {
                         Some(p) => p,
                         slot => slot.insert(crate::pipeline::prepare::open(&k.pipeline)?),
                     };
-                    units::run_unit(day, plan, unit, Some(&k), pass, opts)?
+                    units::run_unit(day, plan, unit, Some(&k), pass, Target::OwnFile, opts)?
                 }
             };
             done.insert(unit.id.clone(), entry);
@@ -225,22 +237,40 @@ fn plan_day(
     Ok((p, Some(prepared)))
 }
 
-/// The plan's units done: in the journal, their file there with the journalled digest.
+/// The plan's units done: in the journal, their points there with the journalled digest. A
+/// unit in its pass's file counts only when it is the pass's first or follows the pass's
+/// previous unit, done, in that file (its records start where that unit's end), so the pass
+/// file holds every record before its own.
 fn finished_units(day: &LoadedDay, plan: &Plan) -> Result<BTreeMap<String, Entry>> {
     let out = &day.config.day.out;
     let journalled = journal::read(&out.join("journal.jsonl"))?;
-    let done = plan.units.iter().filter_map(|u| {
-        let entry = verified(out, &journalled, &u.id)?;
-        Some((u.id.clone(), entry))
-    });
-    Ok(done.collect())
+    let mut done: BTreeMap<String, Entry> = BTreeMap::new();
+    for u in &plan.units {
+        let Some(e) = journalled.get(&u.id) else {
+            continue;
+        };
+        if let Some([start, _]) = e.range {
+            let previous = plan.previous_in_pass(u);
+            let previous_end = previous.map(|p| done.get(&p.id).and_then(|d| d.range));
+            if previous_end.is_some_and(|r| r.map(|[_, end]| end) != Some(start)) {
+                continue;
+            }
+        }
+        if verified(out, e, &day.config.passes[u.pass].name) {
+            done.insert(u.id.clone(), e.clone());
+        }
+    }
+    Ok(done)
 }
 
-/// The journal's entry of unit `id` when its file is there with the journalled digest.
-fn verified(out: &Path, journalled: &BTreeMap<String, Entry>, id: &str) -> Option<Entry> {
-    let e = journalled.get(id)?;
-    let digest = journal::file_digest(&units::unit_path(out, id))?;
-    (digest == e.sha256).then(|| e.clone())
+/// Whether the points of the journal's entry `e` (a unit of the pass named `pass`) are there
+/// with the journalled digest.
+fn verified(out: &Path, e: &Entry, pass: &str) -> bool {
+    let digest = match e.range {
+        None => journal::file_digest(&units::unit_path(out, &e.unit)),
+        Some(range) => journal::part_digest(&units::pass_file(out, pass), range),
+    };
+    digest.is_some_and(|d| d == e.sha256)
 }
 
 /// Refuses to go on (diagnose, merge) before every unit of the plan is done.

@@ -94,6 +94,15 @@ impl PlannedClock {
     }
 }
 
+impl Plan {
+    /// The unit before `unit` in its pass (plan order); none for the pass's first.
+    pub fn previous_in_pass(&self, unit: &Unit) -> Option<&Unit> {
+        let k = self.units.iter().position(|u| u.id == unit.id)?;
+        let previous = &self.units[k.checked_sub(1)?];
+        (previous.pass == unit.pass).then_some(previous)
+    }
+}
+
 /// A work unit: records `records` of input `input`, whole profiles.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Unit {
@@ -123,6 +132,7 @@ pub fn pass_pipeline(day: &LoadedDay, pass: usize, las: &Path) -> LoadedPipeline
     c.output.las = las.to_path_buf().into();
     c.output.report = None;
     c.output.split = SplitMode::None;
+    c.output.max_points_per_file = None;
     c.output.format = OutputFormat::Las;
     c.output.allow_empty = true;
     if !day.config.day.night.sync {

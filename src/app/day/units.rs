@@ -1,6 +1,9 @@
 //! Running work units: a unit's records georeferenced with the plan's clock into its own LAS
-//! file (`<out>/units/<id>.las`, written atomically), then journalled with the file's digest
-//! and the sigma histograms of its points, both filled from the records as they are written.
+//! file (`<out>/units/<id>.las`, written atomically) or, when the units of its pass run one
+//! after another, straight into its pass's file (`<out>/units/<pass>.pass.las`, written in
+//! parts: each unit's records right after the previous unit's, the header written by the
+//! merge); then journalled with the digest of its points and their sigma histograms, both
+//! filled from the records as they are written.
 
 use super::config::LoadedDay;
 use super::journal::{self, Entry, UnitDigest};
@@ -16,28 +19,65 @@ use crate::pipeline::sync::ResolvedClock;
 use crate::pipeline::write::{LasSink, SinkSettings};
 use crate::pipeline::RunOptions;
 use crate::{Error, Result};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Where the output of unit `id` goes.
+/// Where the output of unit `id` goes when in its own file.
 pub fn unit_path(out: &Path, id: &str) -> PathBuf {
     out.join("units").join(format!("{id}.las"))
 }
 
-/// Runs `unit` of `plan` on its prepared pass (re-processed with `correction` when given:
-/// `prepared` is then the corrected pipeline's) and journals it.
+/// The file of pass `pass` (its name) written in parts by its units (no unit id or pass name
+/// has a dot, so it is no unit's file).
+pub fn pass_file(out: &Path, pass: &str) -> PathBuf {
+    out.join("units").join(format!("{pass}.pass.las"))
+}
+
+/// Where a unit writes its points.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Target {
+    /// Its own LAS file, `units/<id>.las`, written atomically.
+    OwnFile,
+    /// Its pass's file ([`pass_file`]), in place, right after the records of the pass's
+    /// previous unit, which end at this byte (`None`: the pass's first unit).
+    PassFile(Option<u64>),
+}
+
+impl Target {
+    /// Where `unit` goes when the units of its pass run one after another, `done` holding the
+    /// units done so far: into its pass's file when it is the pass's first unit or the pass's
+    /// previous unit is in that file; into its own file otherwise.
+    pub fn in_order(plan: &Plan, unit: &Unit, done: &BTreeMap<String, Entry>) -> Target {
+        match plan.previous_in_pass(unit) {
+            None => Target::PassFile(None),
+            Some(previous) => match done.get(&previous.id).and_then(|e| e.range) {
+                Some([_, end]) => Target::PassFile(Some(end)),
+                None => Target::OwnFile,
+            },
+        }
+    }
+}
+
+/// Runs `unit` of `plan` on its prepared pass into `target` (re-processed with `correction`
+/// when given, into its own file: `prepared` is then the corrected pipeline's) and journals
+/// it.
 pub fn run_unit(
     day: &LoadedDay,
     plan: &Plan,
     unit: &Unit,
     correction: Option<&Correction>,
     prepared: &Prepared,
+    target: Target,
     opts: &RunOptions,
 ) -> Result<Entry> {
     let started = Instant::now();
     let out = &day.config.day.out;
     let id = correction.map_or_else(|| unit.id.clone(), |k| k.unit_id(unit));
-    let path = unit_path(out, &id);
+    let path = match target {
+        Target::OwnFile => unit_path(out, &id),
+        Target::PassFile(_) => pass_file(out, &day.config.passes[unit.pass].name),
+    };
     let (p, planned) = match correction {
         None => (
             pass_pipeline(day, unit.pass, &path),
@@ -64,13 +104,17 @@ pub fn run_unit(
     .with_geoid(prepared.geoid.as_ref());
     let schema = OutputSchema::new(c);
     let fill = schema.fill(input.point_source_id);
-    let mut sink = LasSink::new(SinkSettings::new(
+    let settings = SinkSettings::new(
         c,
         &schema,
         &prepared.frame,
         prepared.geoid.as_ref(),
         &prepared.traj,
-    )?);
+    )?;
+    let mut sink = match target {
+        Target::OwnFile => LasSink::new(settings),
+        Target::PassFile(previous_end) => LasSink::part(settings, previous_end),
+    };
     sink.start_input(&input.original)?;
     let records = unit.records[0]..unit.records[1];
     let offsets = SigmaOffsets::of(&schema);
@@ -98,10 +142,20 @@ pub fn run_unit(
         .finish()?
         .pop()
         .ok_or_else(|| Error::bad_file(&path, "no file written"))?;
-    let (map, layout) = map_las(&path)?;
+    let (sha256, range) = match target {
+        Target::OwnFile => {
+            let (map, layout) = map_las(&path)?;
+            (digest.finish(&map[..layout.offset_to_points]), None)
+        }
+        Target::PassFile(_) => {
+            let start = las.file_bytes - las.point_count * record_len as u64;
+            (digest.finish(&[]), Some([start, las.file_bytes]))
+        }
+    };
     let entry = Entry {
         unit: id,
-        sha256: digest.finish(&map[..layout.offset_to_points]),
+        sha256,
+        range,
         counts,
         seconds: started.elapsed().as_secs_f64(),
         las,

@@ -1,7 +1,7 @@
 //! The public header block and the VLRs (WKT CRS, Extra Bytes descriptors), serialised with
 //! the `las` crate's raw types.
 
-use super::{ChunkStats, ExtraDim, GpsTimeConvention, LasSummary, LasWriterConfig, POINT_FORMAT};
+use super::{ExtraDim, GpsTimeConvention, LasSummary, LasWriterConfig, POINT_FORMAT};
 use crate::{Error, Result};
 use las::raw::vlr::RecordLength;
 use las::Version;
@@ -13,10 +13,10 @@ const EXTRA_BYTES_DESCRIPTOR_LEN: usize = 192;
 const GLOBAL_ENCODING_GPS_ADJUSTED: u16 = 1 << 0;
 const GLOBAL_ENCODING_WKT: u16 = 1 << 4;
 
-/// The 375-byte LAS 1.4 public header block (legacy counts zero: format 6).
+/// The 375-byte LAS 1.4 public header block of a file holding the points `summary` describes
+/// (legacy counts zero: format 6).
 pub(super) fn header_bytes(
     config: &LasWriterConfig,
-    stats: &ChunkStats,
     summary: &LasSummary,
     offset_to_points: u32,
 ) -> std::result::Result<Vec<u8>, String> {
@@ -55,8 +55,8 @@ pub(super) fn header_bytes(
         start_of_waveform_data_packet_record: Some(0),
         evlr: None,
         large_file: Some(las::raw::header::LargeFile {
-            number_of_point_records: stats.count,
-            number_of_points_by_return: stats.points_by_return,
+            number_of_point_records: summary.point_count,
+            number_of_points_by_return: summary.points_by_return,
         }),
         ..Default::default()
     };

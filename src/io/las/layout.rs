@@ -194,6 +194,11 @@ impl PointLayout {
     pub fn record_len(&self) -> usize {
         self.record_len
     }
+    /// The coordinate (m) that the stored integer `count` of axis `axis` (0 X, 1 Y, 2 Z)
+    /// stands for: `count * scale + offset`.
+    pub fn coordinate_m(&self, axis: usize, count: i32) -> f64 {
+        f64::from(count) * self.scale_m[axis] + self.offset_m[axis]
+    }
 }
 
 fn validate_extra_dims(dims: &[ExtraDim]) -> Result<()> {
