@@ -439,8 +439,9 @@ fn a_diagnosis_output_that_is_an_input_is_refused() {
 /// finite difference through the real georeferencing: the survey observed again with the
 /// corrected value moved by `+-delta` through the re-processing's own `--set` lines. Adding
 /// `delta` to the configured value moves a residual by `-signature * delta`. The survey has
-/// neither navigation errors nor scanner noise: signatures are evaluated at each return's
-/// range less its own noise (errors in variables), which is then its measured range.
+/// neither navigation errors nor scanner noise: the range scale's signature is evaluated at
+/// each return's range less its own noise (errors in variables), which is then its measured
+/// range.
 #[test]
 fn signatures_equal_finite_differences_through_the_georeferencing() {
     use kinescan::app::diagnose::reprocess::set_lines;

@@ -717,10 +717,10 @@ const MIN_COS_INCIDENCE: f64 = 0.05;
 /// The range (m) each return of one visit would have measured without its own noise: its
 /// measured range less its residual's departure from the visit's mean residual, along the beam
 /// (`rho - (r - mean r) / (n . u)`) on the surface of unit normal `n_e` through `centre_e`.
-/// Signatures and gradients are evaluated there: at the measured range they would carry the
-/// return's own range noise, which is also in its residual (errors in variables: on ground
-/// patches alone a range-scale fit of -32% came from it; docs/diagnosis.md, "Observations").
-/// What the visit shares (navigation error, an effect's offset) stays in the mean.
+/// The range-scale signature is evaluated there: at the measured range it carries the return's
+/// own range noise, which is also in its residual (errors in variables: on ground patches
+/// alone a range-scale fit of -32% came from it; docs/diagnosis.md, "Observations"). What the
+/// visit shares (navigation error, an effect's offset) stays in the mean.
 fn denoised_ranges_m<'a>(
     located: impl Iterator<Item = (&'a RawReturn, &'a Located)> + Clone,
     model: &ReturnModel,
@@ -772,19 +772,19 @@ fn covariates(loc: &Located, model: &ReturnModel, n_e: &Vector3<f64>, r: &RawRet
 }
 
 /// Along which axis from which reference point a return is observed, and at which range its
-/// Jacobian is evaluated.
+/// range-scale signature is evaluated.
 struct Surface<'a> {
     /// Unit vector (ECEF) the residual is measured along.
     axis_e: &'a Vector3<f64>,
     /// The reference point (ECEF, m): a patch centre or a control point.
     centre_e: &'a Vector3<f64>,
-    /// Range (m) at which the Jacobian is evaluated ([`denoised_ranges_m`]).
+    /// Range (m) at which the range-scale signature is evaluated ([`denoised_ranges_m`]).
     range_m: f64,
 }
 
 /// The observation of one located return along `at.axis_e` from `at.centre_e`: residual,
 /// white variance, navigation gradient and effect signatures, all from `n^T J` with `J` the
-/// analytic Jacobian of the uncertainty model at range `at.range_m`.
+/// analytic Jacobian of the uncertainty model (the range scale's at range `at.range_m`).
 fn observation_along(
     loc: &Located,
     model: &ReturnModel,
@@ -799,7 +799,7 @@ fn observation_along(
         &model.sensor,
         loc.alpha_rad,
         r.beta_rad,
-        at.range_m,
+        r.range_m,
     );
     let j = geom.jacobian_e();
     let g: [f64; N_INPUTS] = std::array::from_fn(|k| n_e.dot(&j.column(k)));
@@ -821,7 +821,8 @@ fn observation_along(
 /// How far a return moves along `n` (m) per unit of effect `e` present in the data but not in
 /// the configuration: `-n^T d x_e / d p` with `p` the configured value the effect corrects
 /// (georeferencing with `p` too small by `delta` puts the point at `x(p_true) - J delta`).
-/// `g` = `n^T J` over the uncertainty model's inputs, `range_m` the range it is evaluated at.
+/// `g` = `n^T J` over the uncertainty model's inputs; `range_m` the (denoised) range the range
+/// scale is evaluated at.
 fn signature(
     e: Effect,
     g: &[f64; N_INPUTS],
