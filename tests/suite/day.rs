@@ -331,6 +331,19 @@ fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
     );
 }
 
+/// Runs day file `day` (output folder `out`) cluster-style: the plan, then every unit as its
+/// own `--unit` process in reverse plan order, then `--merge`.
+fn run_units_in_reverse_then_merge(day: &str, out: &Path) {
+    ok(kinescan(&["day", day, "--plan"]));
+    let plan: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("plan.json")).unwrap()).unwrap();
+    for u in plan["units"].as_array().unwrap().iter().rev() {
+        let id = u["id"].as_str().unwrap();
+        ok(kinescan(&["day", day, "--unit", id, "-q"]));
+    }
+    ok(kinescan(&["day", day, "--merge", "-q"]));
+}
+
 #[test]
 fn tiles_do_not_depend_on_the_order_units_finished() {
     let dir = tempfile::tempdir().unwrap();
@@ -340,20 +353,7 @@ fn tiles_do_not_depend_on_the_order_units_finished() {
     let straight = day_file(d, "straight", "a", tiles, &three_passes());
     ok(kinescan(&["day", straight.to_str().unwrap(), "-q"]));
     let reversed = day_file(d, "reversed", "b", tiles, &three_passes());
-    let day = reversed.to_str().unwrap();
-    ok(kinescan(&["day", day, "--plan"]));
-    let plan: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(d.join("b/plan.json")).unwrap()).unwrap();
-    for u in plan["units"].as_array().unwrap().iter().rev() {
-        ok(kinescan(&[
-            "day",
-            day,
-            "--unit",
-            u["id"].as_str().unwrap(),
-            "-q",
-        ]));
-    }
-    ok(kinescan(&["day", day, "--merge", "-q"]));
+    run_units_in_reverse_then_merge(reversed.to_str().unwrap(), &d.join("b"));
     let (a, b) = (las_files(&d.join("a")), las_files(&d.join("b")));
     assert!(
         a.len() > 1,
@@ -517,21 +517,8 @@ fn pass_files_written_unit_after_unit_are_the_cluster_s_merge() {
             day
         });
         ok(kinescan(&["day", single.to_str().unwrap(), "-q"]));
-        let day = cluster.to_str().unwrap();
-        ok(kinescan(&["day", day, "--plan"]));
         let out = cluster.with_extension("");
-        let plan: serde_json::Value =
-            serde_json::from_slice(&std::fs::read(out.join("plan.json")).unwrap()).unwrap();
-        for u in plan["units"].as_array().unwrap().iter().rev() {
-            ok(kinescan(&[
-                "day",
-                day,
-                "--unit",
-                u["id"].as_str().unwrap(),
-                "-q",
-            ]));
-        }
-        ok(kinescan(&["day", day, "--merge", "-q"]));
+        run_units_in_reverse_then_merge(cluster.to_str().unwrap(), &out);
         let files = |out: &Path| {
             let mut names = file_names(out);
             names.retain(|n| n.ends_with(&format!(".{format}")));
