@@ -76,7 +76,7 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
             let mean = sum / sg.returns.len() as f64;
             let mut sc_ = s.traj.sigma_cursor().unwrap();
             let sig = sc_.at(sg.crossing_time_s).unwrap();
-            let horiz = sig.pos_ned_m.x.max(sig.pos_ned_m.y);
+            let horiz = crate::common::max_of([sig.pos_ned_m.x, sig.pos_ned_m.y]);
             let bound = 2.0 * (horiz * horiz + tg.sigma_m * tg.sigma_m).sqrt();
             total += 1;
             within += (mean.abs() <= bound) as usize;
@@ -86,7 +86,7 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     let crb_s1 = (crb1.iter().sum::<f64>() / crb1.len() as f64).sqrt();
     eprintln!(
         "paper: t0 err rms {:.3e} s (pred {:.3e}), T err rms {:.3e} s (pred {:.3e}), max |T err| {:.3e}",
-        rms(&pe0), rms(&ps0), rms(&pe1), rms(&ps1), pe1.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+        rms(&pe0), rms(&ps0), rms(&pe1), rms(&ps1), crate::common::max_abs(pe1.iter().copied())
     );
     eprintln!(
         "refined: t0 err std {:.3e} (pred {:.3e}, CRB {:.3e}), T err std {:.3e} (pred {:.3e}, CRB {:.3e})",
