@@ -22,7 +22,7 @@ const BIAS_Z: f64 = 3.34;
 /// Cramer-Rao bound (1 sigma, deg, at 1 mm centre noise; scales with the noise) of the default
 /// scenario's geometry with the paper's sites composed the conventions' way (`zyx`) and in the order of
 /// the paper's printed matrix (`xyz`), from the independent `tests/oracle/boresight_crb.py`.
-const BOUND_ZYX_1MM_DEG: [f64; 3] = [0.07589, 0.02814, 0.85173];
+pub(crate) const BOUND_ZYX_1MM_DEG: [f64; 3] = [0.07589, 0.02814, 0.85173];
 const BOUND_XYZ_1MM_DEG: [f64; 3] = [0.0254, 0.03448, 0.03822];
 
 /// Unbiasedness and predicted covariance (issue acceptance) and a printout of the error levels

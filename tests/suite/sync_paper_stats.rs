@@ -98,8 +98,16 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     );
     // Paper's class: the paper's period differed from the laboratory's by 2e-6 s.
     assert!(rms(&pe1) < 2e-6, "paper T error rms {:.3e}", rms(&pe1));
-    // Its predicted sigma (uniform profile quantisation + navigation) is honest within 2x.
-    assert!(rms(&pe1) < 2.0 * rms(&ps1) && rms(&pe0) < 2.0 * rms(&ps0));
+    // Its predicted sigma (uniform profile quantisation + navigation) is honest within 2x both
+    // ways (error rms / predicted: measured 1.19 for t0, 1.03 for T); one-sided, a sigma 100x
+    // too large would pass.
+    for (err, pred) in [(rms(&pe0), rms(&ps0)), (rms(&pe1), rms(&ps1))] {
+        let ratio = err / pred;
+        assert!(
+            (0.5..=2.0).contains(&ratio),
+            "error rms / predicted sigma {ratio}"
+        );
+    }
     // Refined at least 5x more precise than the paper's method on the same data.
     assert!(rms(&pe0) / rms(&re0) >= 5.0 && rms(&pe1) / rms(&re1) >= 5.0);
     // Empirical std within 25% of the Cramer-Rao bound (2.5 sampling sigmas, see SEEDS).
@@ -112,7 +120,12 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     for z in [std(&z0), std(&z1)] {
         assert!((0.8..=1.25).contains(&z), "normalised error std {z:.3}");
     }
-    // 2 sigma holds for 95.4% of Gaussian samples; 90% leaves 4 binomial sigmas at n = 400.
+    // Every plate passage of every seed is a sighting: 4 plates x 2 passes x SEEDS = 400
+    // (measured 400); at least 380 (a sighting rejected now and then), so the rate below is
+    // not one of nothing.
+    assert!(total >= 380, "{total} accepted sightings of 400");
+    // 2 sigma holds for 95.45% of Gaussian samples: >= 90% is >= 360 of 400, failed by an
+    // honest sigma with probability 1.5e-6 (binomial); measured 384/400.
     assert!(
         within as f64 >= 0.9 * total as f64,
         "{within}/{total} within 2 sigma"
