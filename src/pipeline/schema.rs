@@ -92,7 +92,13 @@ impl OutputSchema {
         self.push(dim("sigma_y", "1-sigma along Y"));
         self.push(dim("sigma_z", "1-sigma along Z"));
         let thu95 = u.write_95.then(|| {
-            let first = self.push(dim("thu95", "95% horizontal, 1.7308 sig_r"));
+            // 32 bytes with "(m)"; one fewer comma to fit "(ft)".
+            let what = if unit == "m" {
+                "95% horizontal, 1.7308 sig_r"
+            } else {
+                "95% horizontal 1.7308 sig_r"
+            };
+            let first = self.push(dim("thu95", what));
             self.push(dim("tvu95", "95% vertical, 1.96 sigma_z"));
             first
         });
@@ -226,10 +232,13 @@ mod tests {
         let u = s.uncertainty.unwrap();
         assert_eq!((s.range, s.return_index), (Some(0), Some(1)));
         assert_eq!((u.sigma_x, u.thu95, u.shares), (2, None, Some(5)));
-        assert_eq!(s.dims().len(), 11);
-        // range f32, return_index f64, three f32 sigmas.
+        assert_eq!(s.dims().len(), 12);
+        // range f32, return_index f64, three f32 sigmas, six share bytes, mirror_angle last.
         assert_eq!(s.extra_byte_offset(1), 4);
         assert_eq!(s.extra_byte_offset(u.sigma_x), 12);
         assert_eq!(s.extra_byte_offset(5), 24);
+        assert_eq!(s.mirror_angle, Some(11));
+        assert_eq!(s.extra_byte_offset(11), 30);
+        assert_eq!(s.units_per_m, 1.0);
     }
 }

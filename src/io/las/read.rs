@@ -161,7 +161,7 @@ pub fn read_header(path: &Path) -> Result<LasHeaderInfo> {
     // VLRs between the header and the points; EVLRs after the points (LAS 1.4). Read with
     // seeks: a cloud's points are never read.
     let mut read_at = |at: u64, len: usize| -> Result<Vec<u8>> {
-        if at + len as u64 > size {
+        if at.saturating_add(len as u64) > size {
             return Err(bad(format!(
                 "a VLR at byte {at} ({len} B) runs past the end of the file ({size} B): truncated"
             )));
@@ -211,7 +211,7 @@ pub fn read_header(path: &Path) -> Result<LasHeaderInfo> {
                 Vec::new()
             };
             records.push((text(&h[2..18]), u16_at(&h, 18), body));
-            at += EVLR_HEADER as u64 + len;
+            at = at.saturating_add(EVLR_HEADER as u64).saturating_add(len);
         }
     }
     for (k, (user, id, body)) in records.iter().enumerate() {
@@ -305,6 +305,31 @@ fn crs_of_geotiff_keys(body: &[u8]) -> CrsInfo {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Corrupt headers are refused naming the file, never a panic or a huge allocation.
+    #[test]
+    fn corrupt_headers_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("bad.las");
+        let mut h = vec![0u8; HEADER_1_4];
+        h[..4].copy_from_slice(b"LASF");
+        (h[24], h[25]) = (1, 4);
+        h[94..96].copy_from_slice(&(HEADER_1_4 as u16).to_le_bytes());
+        h[96..100].copy_from_slice(&(HEADER_1_4 as u32).to_le_bytes());
+        // One EVLR whose start lies far beyond the file.
+        h[235..243].copy_from_slice(&(u64::MAX - 10).to_le_bytes());
+        h[243..247].copy_from_slice(&1u32.to_le_bytes());
+        std::fs::write(&path, &h).unwrap();
+        let e = read_header(&path).unwrap_err().to_string();
+        assert!(e.contains("bad.las") && e.contains("past the end"), "{e}");
+        // A VLR count the header has no room for.
+        h[100..104].copy_from_slice(&3u32.to_le_bytes());
+        std::fs::write(&path, &h).unwrap();
+        let e = read_header(&path).unwrap_err().to_string();
+        assert!(e.contains("VLR 0 of 3"), "{e}");
+        std::fs::write(&path, b"LASF").unwrap();
+        assert!(read_header(&path).is_err());
+    }
 
     #[test]
     fn wkt_codes_at_the_right_depth() {
