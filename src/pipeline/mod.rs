@@ -36,6 +36,7 @@ pub(crate) mod write;
 
 pub use config::{load, LoadedPipeline};
 pub use sync::ResolvedClock;
+pub use write::survey_date;
 
 use georeference::ReturnGeoreferencer;
 use report::{OutputReport, ReturnCounts, RunReport, StageTiming};

@@ -113,7 +113,7 @@ pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Resu
     )?;
     if let Some(d) = opts.duration_s {
         sc.duration_s = d;
-        sc.validate("--duration")?;
+        sc.validate("--duration-s")?;
     }
     simulate_scenario(&sc, out_dir, opts)
 }

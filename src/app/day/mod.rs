@@ -15,6 +15,7 @@
 //!    published as one set (`io::publish`).
 
 pub mod config;
+pub mod health;
 pub mod journal;
 pub mod merge;
 pub mod morning;
@@ -59,6 +60,15 @@ pub struct DayReport {
     pub kinescan_version: String,
     /// The day file.
     pub day_file: PathBuf,
+    /// The day's output folder (`day.out`): the files, `report.md`, `report.html` (not in the
+    /// JSON: the files' paths name it).
+    #[serde(skip)]
+    pub out_dir: PathBuf,
+    /// Survey date (UTC, `YYYY-MM-DD`) of the trajectory's first record, from the template's
+    /// `inputs.gps_week`; None without it.
+    pub survey_date: Option<String>,
+    /// The output CRS as the LAS files state it (name, EPSG code, geoid grid).
+    pub crs: String,
     /// Work units planned.
     pub units: usize,
     /// Units found done in the journal (not run again by this invocation).
@@ -88,6 +98,10 @@ pub struct PassReport {
     pub counts: ReturnCounts,
     /// Seconds spent in its units (summed over the runs that did them).
     pub unit_seconds: f64,
+    /// GPS time of its first and last record (s); None for a pass without records.
+    pub time_span_s: Option<[f64; 2]>,
+    /// GNSS outages (SMRMSG) and SBET gaps within the pass.
+    pub trajectory: health::TrajectoryHealth,
 }
 
 /// One LAS file of the day.
@@ -97,6 +111,12 @@ pub struct OutputFile {
     pub path: PathBuf,
     /// Points.
     pub points: u64,
+    /// File size (bytes).
+    pub bytes: u64,
+    /// Header minimum X, Y, Z (file units).
+    pub min: [f64; 3],
+    /// Header maximum X, Y, Z (file units).
+    pub max: [f64; 3],
 }
 
 /// Runs `step` of the day file `path`; gives the report when the day was published.
@@ -345,6 +365,8 @@ fn day_report(
             units: 0,
             counts: ReturnCounts::default(),
             unit_seconds: 0.0,
+            time_span_s: None,
+            trajectory: health::TrajectoryHealth::default(),
         })
         .collect();
     let mut totals = ReturnCounts::default();
@@ -355,12 +377,43 @@ fn day_report(
         p.counts.merge(&e.counts);
         p.unit_seconds += e.seconds;
         totals.merge(&e.counts);
+        let [t0, t1] = u.time_window_s;
+        p.time_span_s = Some(
+            p.time_span_s
+                .map_or([t0, t1], |[a, b]| [a.min(t0), b.max(t1)]),
+        );
     }
+    let c = &day.template.config;
+    let traj = crate::pipeline::prepare::open_trajectory(c)?;
+    let spans: Vec<Option<[f64; 2]>> = passes.iter().map(|p| p.time_span_s).collect();
+    for (p, h) in passes.iter_mut().zip(health::per_pass(&traj, &spans)) {
+        p.trajectory = h;
+    }
+    let first = traj.sbet().record(0);
+    let frame = crate::pipeline::prepare::map_frame(&c.output.frame, &traj)?;
+    let code = frame
+        .epsg()
+        .map_or(String::new(), |e| format!(" (EPSG:{e})"));
+    let geoid = c.output.geoid.as_ref().map_or(String::new(), |g| {
+        let name = g.file_name().map(|n| n.to_string_lossy().into_owned());
+        format!(", heights above the geoid of {}", name.unwrap_or_default())
+    });
+    let unit = if frame.metres_per_unit() == 1.0 {
+        String::new()
+    } else {
+        format!(
+            ", Z and sigmas in the CRS's unit ({} m)",
+            frame.metres_per_unit()
+        )
+    };
     let outputs: Vec<OutputFile> = summaries
         .iter()
         .map(|s| OutputFile {
             path: set.final_path(&s.path),
             points: s.point_count,
+            bytes: s.file_bytes,
+            min: s.min_m,
+            max: s.max_m,
         })
         .collect();
     let merged: u64 = outputs.iter().map(|o| o.points).sum();
@@ -377,6 +430,9 @@ fn day_report(
     Ok(DayReport {
         kinescan_version: env!("CARGO_PKG_VERSION").into(),
         day_file: day.path.clone(),
+        out_dir: day.config.day.out.to_path_buf(),
+        survey_date: crate::pipeline::survey_date(c.inputs.gps_week, first.time_s),
+        crs: format!("{frame}{code}{geoid}{unit}"),
         units: plan.units.len(),
         units_resumed: resumed,
         passes,

@@ -21,6 +21,7 @@
 mod encode;
 mod header;
 mod layout;
+pub mod read;
 
 pub use encode::{encode_points, stats_of_records, ChunkStats, LasPoint};
 pub use layout::{ExtraDim, ExtraType, GpsTimeConvention, PointLayout, FRACTION_SCALE};

@@ -5,8 +5,11 @@ use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
-/// Output mapping frame.
+/// Output mapping frame: a table with a `kind` (`output.frame = { kind = "utm" }`). A bare
+/// name (`frame = "utm"`) is refused with the table to write instead (serde's own message,
+/// "expected internally tagged enum FrameConfig", says nothing a user can act on).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 #[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
 pub enum FrameConfig {
     /// UTM with ellipsoidal height; zone from the trajectory's first record unless given.
@@ -35,6 +38,51 @@ pub enum FrameConfig {
         /// EPSG code, e.g. 2154 (RGF93 v1 / Lambert-93).
         code: u32,
     },
+}
+
+impl Serialize for FrameConfig {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        FrameConfig::serialize(self, s)
+    }
+}
+
+impl<'de> Deserialize<'de> for FrameConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Table;
+        impl<'de> serde::de::Visitor<'de> for Table {
+            type Value = FrameConfig;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table such as { kind = \"utm\" }")
+            }
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<FrameConfig, E> {
+                Err(E::custom(frame_name_refusal(name)))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<FrameConfig, A::Error> {
+                FrameConfig::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+            }
+        }
+        d.deserialize_any(Table)
+    }
+}
+
+/// The refusal of a bare frame name `frame = "<name>"`.
+fn frame_name_refusal(name: &str) -> String {
+    let kind = match name {
+        "utm" | "ecef" | "enu" | "epsg" => name,
+        _ => "utm",
+    };
+    let example = match kind {
+        "enu" => "{ kind = \"enu\", lat_deg = 48.1, lon_deg = 11.5, h_m = 520.0 }".to_string(),
+        "epsg" => "{ kind = \"epsg\", code = 25832 }".to_string(),
+        _ => format!("{{ kind = \"{kind}\" }}"),
+    };
+    format!(
+        "the frame is a table, not a name: write `frame = {example}` (kinds: utm with optional \
+         zone and north, ecef, enu with lat_deg, lon_deg, h_m, epsg with code; docs/output.md)"
+    )
 }
 
 impl FrameConfig {
@@ -144,6 +192,10 @@ pub struct OutputConfig {
     /// Write the measured range (m) as an extra dimension `range`.
     #[serde(default = "super::yes")]
     pub range_dimension: bool,
+    /// Write the recorded mirror angle (deg, wrapped to -180..180) as an extra dimension
+    /// `mirror_angle`; the LAS scan angle is the nadir-referenced angle LAS 1.4 defines.
+    #[serde(default = "super::yes")]
+    pub mirror_angle_dimension: bool,
     /// Write each point's 0-based record index in its profile file as the extra dimension
     /// `return_index` (float64, exact to 2^53), to trace a point back to its raw return.
     #[serde(default)]
