@@ -119,10 +119,12 @@ pub fn align(
         }
         _ => {
             // Static while no rotation above 0.5 deg/s and the specific force stays within
-            // 0.1 m/s^2 of the first record's magnitude, for at least 1 s.
+            // 0.1 m/s^2 of the first record's magnitude, for at least 1 s. The records after
+            // the start (the one at the start covers the interval before it).
             let mut sum_f = Vector3::zeros();
-            let f_first = Vector3::from(imu.get(index).f_b).norm();
-            let mut k = index;
+            let first = (index + 1).min(n - 1);
+            let f_first = Vector3::from(imu.get(first).f_b).norm();
+            let mut k = first;
             while k < n && imu.get(k).time_s <= t0 + cfg.static_s {
                 let r = imu.get(k);
                 let f = Vector3::from(r.f_b);
@@ -134,9 +136,9 @@ pub fn align(
                 sum_f += f;
                 k += 1;
             }
-            let count = k - index;
+            let count = k - first;
             let is_static = count >= 2 && imu.get(k - 1).time_s - t0 >= 1.0;
-            let Some((tc, hc, vc)) = course(gnss, g0, cfg.course_min_speed_mps) else {
+            let Some((tc, _, vc)) = course(gnss, g0, cfg.course_min_speed_mps) else {
                 return Err(fail(format!(
                     "the GNSS positions never move faster than {} m/s \
                      (alignment.course_min_speed_mps): no course for the heading; give it \
@@ -145,34 +147,48 @@ pub fn align(
                 )));
             };
             let h_sig = deg(cfg.course_heading_sigma_deg);
-            if is_static {
+            let (roll, pitch, a_sig, v0) = if is_static {
                 let f = sum_f / count as f64;
-                let roll = (-f.y).atan2(-f.z);
-                let pitch = f.x.atan2(f.y.hypot(f.z));
                 let g = 9.8;
                 let a_sig =
                     ((grade.accel.bias.powi(2) + grade.accel.instability.powi(2)).sqrt() * 2.0 / g)
                         .max(deg(0.005));
                 (
-                    roll,
-                    pitch,
-                    hc,
-                    [a_sig, a_sig, h_sig],
+                    (-f.y).atan2(-f.z),
+                    f.x.atan2(f.y.hypot(f.z)),
+                    a_sig,
                     Vector3::zeros(),
-                    true,
-                    Some(tc),
                 )
             } else {
-                (
-                    0.0,
-                    0.0,
-                    hc,
-                    [deg(5.0), deg(5.0), h_sig],
-                    vc,
-                    false,
-                    Some(tc),
-                )
+                let v0 = course(gnss, g0, 0.0).map_or_else(Vector3::zeros, |c| c.2);
+                (0.0, 0.0, deg(5.0), v0)
+            };
+            // The course is the antenna's: take out the lever arm's rotation velocity
+            // R (w x l), then go back from the course's time to the start with the yaw rate
+            // (the van may drive off in a curve).
+            let (mut yaw, mut w_tc) = (0.0, Vector3::zeros());
+            let mut k = index + 1;
+            let (sr, cr) = roll.sin_cos();
+            while k < n && imu.get(k).time_s <= tc {
+                let r = imu.get(k);
+                let dt = r.time_s - imu.get(k - 1).time_s;
+                yaw += (r.w_b[1] * sr + r.w_b[2] * cr) / pitch.cos() * dt;
+                w_tc = Vector3::from(r.w_b);
+                k += 1;
             }
+            let h_tc = vc.y.atan2(vc.x);
+            let lever_v = q_b_to_n(roll, pitch, h_tc) * w_tc.cross(&lever_b);
+            let v_imu = vc - lever_v;
+            let heading = v_imu.y.atan2(v_imu.x) - yaw;
+            (
+                roll,
+                pitch,
+                heading,
+                [a_sig, a_sig, h_sig],
+                v0,
+                is_static,
+                Some(tc),
+            )
         }
     };
     let q = q_b_to_n(roll, pitch, heading);

@@ -100,10 +100,10 @@ pub fn initial_covariance(
     att_sigma_rad: [f64; 3],
 ) -> Mat {
     let mut p = Mat::zeros();
-    for i in 0..3 {
-        p[(POS + i, POS + i)] = pos_sigma_m[i].powi(2);
+    for (i, (sp, sa)) in pos_sigma_m.iter().zip(att_sigma_rad).enumerate() {
+        p[(POS + i, POS + i)] = sp.powi(2);
         p[(VEL + i, VEL + i)] = vel_sigma_mps.powi(2);
-        p[(ATT + i, ATT + i)] = att_sigma_rad[i].powi(2);
+        p[(ATT + i, ATT + i)] = sa.powi(2);
         p[(BG + i, BG + i)] = g.gyro.bias.powi(2) + g.gyro.instability.powi(2);
         p[(BA + i, BA + i)] = g.accel.bias.powi(2) + g.accel.instability.powi(2);
         p[(SG + i, SG + i)] = g.gyro.scale_factor.powi(2);
@@ -245,7 +245,7 @@ impl Filter {
             return UpdateOutcome::Rejected(f64::INFINITY);
         };
         let d2 = (y.transpose() * s_inv * y)[(0, 0)];
-        if !(d2 <= self.gate) {
+        if d2.is_nan() || d2 > self.gate {
             return UpdateOutcome::Rejected(d2);
         }
         let k = pht * s_inv;

@@ -299,10 +299,9 @@ fn inverse_spd(p: &Mat) -> Result<Mat> {
 
 /// Euler-angle Jacobian: (roll, pitch, heading) errors = `E * phi` for the attitude `q`.
 pub fn euler_jacobian(nav: &NavState) -> Matrix3<f64> {
-    let (roll, pitch, heading) = super::mechanisation::euler(nav);
+    let (_, pitch, heading) = super::mechanisation::euler(nav);
     let rz = crate::geo::rotations::rot_z(heading);
     let ry = crate::geo::rotations::rot_y(pitch);
-    let _ = roll;
     let mut m = Matrix3::zeros();
     m.set_column(0, &(rz * ry * Vector3::x()));
     m.set_column(1, &(rz * Vector3::y()));
@@ -362,13 +361,11 @@ struct AcfAccumulator {
 
 fn output_vars(p: &Mat, e: &Matrix3<f64>) -> [f64; 9] {
     let att = e * p.fixed_view::<3, 3>(ATT, ATT) * e.transpose();
-    let mut v = [0.0; 9];
-    for c in 0..3 {
-        v[c] = p[(POS + c, POS + c)];
-        v[3 + c] = p[(VEL + c, VEL + c)];
-        v[6 + c] = att[(c, c)];
-    }
-    v
+    std::array::from_fn(|c| match c {
+        0..=2 => p[(POS + c, POS + c)],
+        3..=5 => p[(VEL + c - 3, VEL + c - 3)],
+        _ => att[(c - 6, c - 6)],
+    })
 }
 
 impl AcfAccumulator {
@@ -407,7 +404,7 @@ impl AcfAccumulator {
             an.age += 1;
             if let Ok(k) = self.lags.binary_search(&an.age) {
                 let att = e * an.g.fixed_view::<3, 3>(ATT, ATT) * an.e.transpose();
-                for c in 0..9 {
+                for (c, sum) in self.sum[k].iter_mut().enumerate() {
                     let cov = if c < 6 {
                         an.g[(c, c)]
                     } else {
@@ -415,7 +412,7 @@ impl AcfAccumulator {
                     };
                     let den = (var[c] * an.var[c]).sqrt();
                     if den > 0.0 {
-                        self.sum[k][c] += cov / den;
+                        *sum += cov / den;
                     }
                 }
                 self.dt_sum[k] += an.t - t;
@@ -423,7 +420,7 @@ impl AcfAccumulator {
             }
         }
         self.anchors.retain(|an| an.age < max);
-        if i % self.every == 0 && !self.lags.is_empty() {
+        if i.is_multiple_of(self.every) && !self.lags.is_empty() {
             self.anchors.push(Anchor {
                 g: *ps,
                 var,

@@ -180,7 +180,7 @@ impl Iterator for RawGen {
             self.imu.record(truth.time_s, &dth, &dv, self.dt)
         });
         let rel = truth.time_s - self.start_s;
-        let gnss = if k % self.gnss_every == 0 {
+        let gnss = if k.is_multiple_of(self.gnss_every) {
             self.gnss.fix(&truth, rel)
         } else {
             None
