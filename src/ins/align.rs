@@ -43,8 +43,38 @@ fn fail(problem: String) -> Error {
     }
 }
 
+/// Fix `i` as a geodetic point with zero velocity and attitude (for NED differences).
+fn point(g: &GnssRecord) -> NavState {
+    NavState {
+        time_s: g.time_s,
+        lat_rad: g.lat_rad,
+        lon_rad: g.lon_rad,
+        h_m: g.h_m,
+        v_n: Vector3::zeros(),
+        q_b_n: Default::default(),
+    }
+}
+
+/// Largest distance (m) of a fix from the line through its neighbours for it to count as
+/// consistent: an outlier (multipath) is metres off, a curve's sagitta over 1 s is decimetres.
+const CONSISTENT_M: f64 = 0.5;
+
+/// Whether fix `i` agrees with the straight-line extrapolation of fixes i+1 and i+2.
+fn consistent(gnss: &[GnssRecord], i: usize) -> bool {
+    let (Some(b), Some(c)) = (gnss.get(i + 1), gnss.get(i + 2)) else {
+        return false;
+    };
+    let a = &gnss[i];
+    let pb = point(b);
+    let d_bc = pb.ned_to(c.lat_rad, c.lon_rad, c.h_m);
+    let d_ba = pb.ned_to(a.lat_rad, a.lon_rad, a.h_m);
+    let k = (a.time_s - b.time_s) / (c.time_s - b.time_s);
+    (d_ba - d_bc * k).norm() <= CONSISTENT_M
+}
+
 /// The GNSS course: (time, heading (rad), NED velocity) of the first pair of fixes about 1 s
-/// apart moving faster than `min_speed`.
+/// apart moving faster than `min_speed`, whose fix half way between agrees with them (an
+/// outlier at either end or in the middle is skipped).
 fn course(gnss: &[GnssRecord], from: usize, min_speed: f64) -> Option<(f64, f64, Vector3<f64>)> {
     let mut b = from;
     for a in from..gnss.len() {
@@ -55,21 +85,27 @@ fn course(gnss: &[GnssRecord], from: usize, min_speed: f64) -> Option<(f64, f64,
             return None;
         }
         let dt = gnss[b].time_s - gnss[a].time_s;
-        if dt > 1.5 {
+        if dt > 1.5 || b < a + 2 {
             continue;
         }
-        let pa = NavState {
-            time_s: gnss[a].time_s,
-            lat_rad: gnss[a].lat_rad,
-            lon_rad: gnss[a].lon_rad,
-            h_m: gnss[a].h_m,
-            v_n: Vector3::zeros(),
-            q_b_n: Default::default(),
-        };
+        let pa = point(&gnss[a]);
         let d = pa.ned_to(gnss[b].lat_rad, gnss[b].lon_rad, gnss[b].h_m);
+        let tm = 0.5 * (gnss[a].time_s + gnss[b].time_s);
+        let m = (a + 1..b)
+            .min_by(|&i, &j| {
+                (gnss[i].time_s - tm)
+                    .abs()
+                    .total_cmp(&(gnss[j].time_s - tm).abs())
+            })
+            .unwrap_or(a + 1);
+        let w = (gnss[m].time_s - gnss[a].time_s) / dt;
+        let dm = pa.ned_to(gnss[m].lat_rad, gnss[m].lon_rad, gnss[m].h_m);
+        if (dm - d * w).norm() > CONSISTENT_M {
+            continue;
+        }
         let v = d / dt;
         if v.x.hypot(v.y) >= min_speed {
-            return Some((0.5 * (gnss[a].time_s + gnss[b].time_s), v.y.atan2(v.x), v));
+            return Some((tm, v.y.atan2(v.x), v));
         }
     }
     None
@@ -90,7 +126,11 @@ pub fn align(
     }
     let t_imu0 = imu.get(0).time_s;
     let t_imu1 = imu.get(n - 1).time_s;
-    let g0 = gnss.partition_point(|g| g.time_s < t_imu0);
+    // The first fix within the IMU span that agrees with the next two (not an outlier).
+    let mut g0 = gnss.partition_point(|g| g.time_s < t_imu0);
+    while g0 < gnss.len() && !consistent(gnss, g0) {
+        g0 += 1;
+    }
     let Some(fix0) = gnss.get(g0).filter(|g| g.time_s <= t_imu1) else {
         return Err(fail("no GNSS fix within the IMU records' time span".into()));
     };
