@@ -541,3 +541,42 @@ fn trajectory_example_config_loads() {
     .unwrap();
     assert_eq!(sc.raw.unwrap().antenna_lever_arm_b_m, LEVER);
 }
+
+/// The command line: `kinescan trajectory CONFIG` succeeds and names its outputs; a bad
+/// override exits 1 naming the key; `--help` has examples.
+#[test]
+fn trajectory_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    kinescan::sim::raw::write_raw(&scenario(43, 20.0, ""), dir.path()).unwrap();
+    let cfg = write_config(dir.path());
+    let exe = env!("CARGO_BIN_EXE_kinescan");
+    let o = std::process::Command::new(exe)
+        .arg("trajectory")
+        .arg(&cfg)
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && out.contains("smoothed.sbet") && out.contains("rejected"),
+        "{out}"
+    );
+    let o = std::process::Command::new(exe)
+        .args([
+            "trajectory",
+            cfg.to_str().unwrap(),
+            "--set",
+            "imu.grade=\"consumer\"",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.code() == Some(1) && err.contains("imu.grade"),
+        "{err}"
+    );
+    let o = std::process::Command::new(exe)
+        .args(["trajectory", "--help"])
+        .output()
+        .unwrap();
+    assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("Example"));
+}
