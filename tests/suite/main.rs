@@ -25,6 +25,7 @@ mod geodesy_local;
 mod geoid;
 mod geoid_pipeline;
 mod georef_forward;
+mod ins_trajectory;
 mod io_atomic;
 mod io_bad_input;
 mod io_info;
