@@ -7,6 +7,7 @@ mod diagnose_cmd;
 mod pipeline_cmds;
 mod sensitivity_cmd;
 mod sim_cmds;
+mod tpu_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -34,6 +35,7 @@ enum Command {
     Sensitivity(sensitivity_cmd::SensitivityArgs),
     Diagnose(diagnose_cmd::DiagnoseArgs),
     Day(day_cmd::DayArgs),
+    Tpu(tpu_cmd::TpuArgs),
 }
 
 /// Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention).
@@ -107,6 +109,7 @@ pub fn run() -> ExitCode {
         Command::Sensitivity(a) => sensitivity_cmd::sensitivity(a, cli.quiet),
         Command::Diagnose(a) => diagnose_cmd::diagnose(a, cli.quiet),
         Command::Day(a) => day_cmd::day(a, cli.quiet),
+        Command::Tpu(a) => tpu_cmd::tpu(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
