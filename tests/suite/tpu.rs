@@ -88,13 +88,13 @@ fn run_then_tpu_gives_runs_sigmas_in_every_frame() {
         let mut worst_share = 0.0f64;
         for (a, b) in run_values.iter().zip(&tpu_values) {
             assert_eq!(a[0], b[0], "range kept byte for byte");
-            for k in 1..6 {
-                let (x, y) = (f64::from(a[k]), f64::from(b[k]));
+            for (x, y) in a.iter().zip(b).take(6).skip(1) {
+                let (x, y) = (f64::from(*x), f64::from(*y));
                 assert!(x > 0.0 && y > 0.0, "{frame}: {names_run:?} {a:?} {b:?}");
                 raise_max(&mut worst_sigma, (y / x - 1.0).abs());
             }
-            for k in 6..a.len() {
-                raise_max(&mut worst_share, (f64::from(b[k]) - f64::from(a[k])).abs());
+            for (x, y) in a.iter().zip(b).skip(6) {
+                raise_max(&mut worst_share, (f64::from(*y) - f64::from(*x)).abs());
             }
         }
         eprintln!("{frame}: {n} points, worst sigma ratio - 1 {worst_sigma:.2e}, worst share {worst_share}");
@@ -327,4 +327,52 @@ fn survey_with_week(dir: &Path, week: u32) -> std::path::PathBuf {
     std::fs::write(&path, text).unwrap();
     run(&config::load(&path, &[]).unwrap(), &quiet_run()).unwrap();
     path
+}
+
+/// The command line: `kinescan tpu PIPELINE --cloud FILE --set ...` writes the copy and the
+/// report and says so; an error exits 1 naming the file.
+#[test]
+fn cli_tpu_writes_the_copy_and_refuses_a_cloud_without_crs() {
+    let dir = tempfile::tempdir().unwrap();
+    survey(dir.path(), 2, "{ kind = \"utm\" }");
+    let args = [
+        "tpu",
+        "pipeline.toml",
+        "--cloud",
+        "out/cloud.las",
+        "--set",
+        "output.las=out/tpu.las",
+    ];
+    let out = kinescan(dir.path(), &args);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout.contains("given a sigma") && stdout.contains("out/tpu.las"),
+        "{stdout}"
+    );
+    assert!(dir.path().join("out/tpu.report.json").exists());
+    let mut b = std::fs::read(dir.path().join("out/cloud.las")).unwrap();
+    let at = b.windows(15).position(|w| w == b"LASF_Projection").unwrap();
+    b[at] = b'X';
+    std::fs::write(dir.path().join("bare.las"), b).unwrap();
+    let args = [
+        "tpu",
+        "pipeline.toml",
+        "--cloud",
+        "bare.las",
+        "--set",
+        "output.las=out/bare_tpu.las",
+    ];
+    let out = kinescan(dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("bare.las") && stderr.contains("no CRS"),
+        "{stderr}"
+    );
+    assert!(!dir.path().join("out/bare_tpu.las").exists());
 }

@@ -248,7 +248,7 @@ impl<'a> Recoverer<'a> {
         let beam = self.scanner.fit(&x_s)?;
         let s = &self.sensor;
         let range_m = beam.range_total_m / (1.0 + s.range_scale_ppm * 1e-6) - s.range_zero_m;
-        if !(range_m > 0.0) {
+        if range_m.is_nan() || range_m <= 0.0 {
             return Err(PointReject::NegativeRange);
         }
         let (min, max) = self.range_limits_m;

@@ -82,7 +82,8 @@ impl ScannerGeometry for ProfileScanner {
     #[inline]
     fn fit(&self, x_s: &Vector3<f64>) -> Result<Beam, Misfit> {
         let beam = beam_of(x_s, self.alpha0_rad);
-        if !(beam.off_cone_m <= self.cone_tolerance_m) {
+        // NaN (a zero vector) is a misfit too.
+        if beam.off_cone_m.is_nan() || beam.off_cone_m > self.cone_tolerance_m {
             return Err(Misfit::OffCone);
         }
         Ok(beam)

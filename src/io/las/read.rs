@@ -569,7 +569,9 @@ pub fn decompress_laz(laz: &Path, las: &Path) -> Result<()> {
     for r in &kept {
         out.write_all(&b[r.clone()])?;
     }
-    let source = std::io::Cursor::new(&b[offset_to_points..points_end]);
+    // The chunk table offset at the start of the point data is absolute in the file.
+    let mut source = std::io::Cursor::new(&b[..points_end]);
+    source.set_position(offset_to_points as u64);
     let mut dec = LasZipDecompressor::new(source, vlr).map_err(|e| bad(format!("LAZ: {e}")))?;
     let batch = 50_000usize;
     let mut buf = vec![0u8; batch * record_len];
