@@ -138,6 +138,10 @@ impl LeewardPoint {
     }
 }
 
+/// A group of sigmas: name, INS position N/E/D (m), INS attitude (rad), lever arm (m), range
+/// (m).
+type Group = (&'static str, [f64; 3], [f64; 3], f64, f64);
+
 /// Recovered range of point 0 (issue 25 acceptance: within 0.05 m of leeward's 4660.10 m),
 /// and, group by group, every point's sigma against leeward's model at the measured
 /// geometry: INS position, INS attitude, lever arm, range agree to 1% along every axis of the
@@ -150,7 +154,7 @@ fn leeward_range_and_sigmas_agree_where_the_models_agree() {
     };
     let data = root.join("leeward");
     let sbet = data.join("sbet.out");
-    let groups: [(&str, [f64; 3], [f64; 3], f64, f64); 4] = [
+    let groups: [Group; 4] = [
         ("ins_position", GNSS_M, [0.0; 3], 0.0, 0.0),
         ("ins_attitude", [0.0; 3], ATT_RAD, 0.0, 0.0),
         ("lever_arm", [0.0; 3], [0.0; 3], LEVER_M, 0.0),

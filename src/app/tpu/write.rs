@@ -48,7 +48,8 @@ impl OutputLayout {
         let ours = |name: &str| dims.iter().any(|d| d.name == name);
         // Record bytes kept: the core, the cloud's dimensions not named like ours, then any
         // bytes its Extra Bytes VLR does not describe.
-        let mut keep: Vec<Range<usize>> = vec![0..core];
+        let mut keep: Vec<Range<usize>> = Vec::new();
+        keep.push(0..core);
         let mut descriptors = Vec::new();
         let mut replaced = Vec::new();
         let mut described = 0;
