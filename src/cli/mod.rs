@@ -7,6 +7,7 @@ mod diagnose_cmd;
 mod pipeline_cmds;
 mod sensitivity_cmd;
 mod sim_cmds;
+mod tpu_cmd;
 mod trajectory_cmd;
 
 use clap::{Parser, Subcommand};
@@ -36,6 +37,7 @@ enum Command {
     Diagnose(diagnose_cmd::DiagnoseArgs),
     Day(day_cmd::DayArgs),
     Trajectory(trajectory_cmd::TrajectoryArgs),
+    Tpu(tpu_cmd::TpuArgs),
 }
 
 /// Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention).
@@ -110,6 +112,7 @@ pub fn run() -> ExitCode {
         Command::Diagnose(a) => diagnose_cmd::diagnose(a, cli.quiet),
         Command::Day(a) => day_cmd::day(a, cli.quiet),
         Command::Trajectory(a) => trajectory_cmd::trajectory(a, cli.quiet),
+        Command::Tpu(a) => tpu_cmd::tpu(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -8,7 +8,7 @@
 //! `sbet*`, `.smrmsg`, `smrmsg*`) or, failing that, from its size and the plausibility of its
 //! first records. When both readings remain possible the file is refused as ambiguous.
 
-use super::las::read::{is_las, read_header, LasHeaderInfo};
+use super::las::inspect::{is_las, read_header, LasHeaderInfo};
 use super::mapped::f64_le;
 use super::patches::{read_patches, PATCHES_HEADER};
 use super::points::read_control_points;

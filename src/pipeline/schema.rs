@@ -78,6 +78,19 @@ impl OutputSchema {
         s
     }
 
+    /// The uncertainty dimensions of `u` alone, in the order and with the names `run` gives
+    /// them (what `kinescan tpu` appends to a cloud).
+    pub fn uncertainty_only(u: &UncertaintyConfig) -> Self {
+        let mut s = OutputSchema {
+            dims: Vec::new(),
+            range: None,
+            return_index: None,
+            uncertainty: None,
+        };
+        s.uncertainty = Some(s.push_uncertainty(u));
+        s
+    }
+
     /// Appends `dim`, giving its slot.
     fn push(&mut self, dim: ExtraDim) -> usize {
         self.dims.push(dim);

@@ -48,6 +48,8 @@ mod sim_tie;
 mod sync_paper_stats;
 mod sync_pipeline;
 mod sync_robust;
+mod tpu;
+mod tpu_leeward;
 mod uncertainty_latency_table;
 mod uncertainty_model;
 mod uncertainty_parking_lot;

@@ -354,7 +354,7 @@ fn a_foot_crs_has_z_and_sigmas_in_feet() {
         worst_sigma < 1e-6,
         "sigma_z in feet off by {worst_sigma} relative"
     );
-    let header = kinescan::io::las::read::read_header(&dir.path().join("out/ft.las")).unwrap();
+    let header = kinescan::io::las::inspect::read_header(&dir.path().join("out/ft.las")).unwrap();
     let sigma_z = header
         .extra_dims
         .iter()
