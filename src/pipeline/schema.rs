@@ -79,13 +79,15 @@ impl OutputSchema {
     }
 
     /// The uncertainty dimensions of `u` alone, in the order and with the names `run` gives
-    /// them (what `kinescan tpu` appends to a cloud).
+    /// them (what `kinescan tpu` appends to a cloud), in metres.
     pub fn uncertainty_only(u: &UncertaintyConfig) -> Self {
         let mut s = OutputSchema {
             dims: Vec::new(),
             range: None,
             return_index: None,
             uncertainty: None,
+            mirror_angle: None,
+            units_per_m: 1.0,
         };
         s.uncertainty = Some(s.push_uncertainty(u));
         s

@@ -16,6 +16,7 @@ use kinescan::io::gnss::GnssRecord;
 use kinescan::io::imu::ImuRecord;
 use kinescan::sim::raw::RawGen;
 use kinescan::sim::Scenario;
+use kinescan::testing::raise_max;
 use nalgebra::{UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -138,8 +139,8 @@ fn mechanisation_reproduces_the_truth_from_a_perfect_imu() {
     let mut k = 0;
     forward(raw.imu.as_slice(), &[], start, 50, &mut |e| {
         let (x, _) = error6(e, &raw.truth[k]);
-        worst.0 = worst.0.max(x.fixed_rows::<3>(0).norm());
-        worst.1 = worst.1.max(x.fixed_rows::<3>(3).norm());
+        raise_max(&mut worst.0, x.fixed_rows::<3>(0).norm());
+        raise_max(&mut worst.1, x.fixed_rows::<3>(3).norm());
         k += 1;
     })
     .unwrap();
@@ -282,14 +283,14 @@ fn outage_error_stays_inside_the_smoothed_envelope() {
             let h = (c[(0, 0)] + c[(1, 1)]).sqrt();
             let rel = e.nav.time_s - t0;
             if !(45.0..75.0).contains(&rel) {
-                sig_out = sig_out.max(h);
+                raise_max(&mut sig_out, h);
                 continue;
             }
-            sig_in = sig_in.max(h);
+            raise_max(&mut sig_in, h);
             n += 1;
             for (i, k) in inside.iter_mut().enumerate() {
                 let r = x[i].abs() / c[(i, i)].sqrt();
-                worst = worst.max(r);
+                raise_max(&mut worst, r);
                 *k += usize::from(r <= 3.0);
             }
         }

@@ -658,7 +658,7 @@ fn scan_angle_is_nadir_referenced_and_positive_to_the_right() {
         let got_deg = f64::from(p.scan_angle);
         // Within 0.01 deg of +-180 both signs are the same direction.
         let diff = (got_deg - expected_deg + 180.0).rem_euclid(360.0) - 180.0;
-        worst_deg = worst_deg.max(diff.abs());
+        raise_max(&mut worst_deg, diff.abs());
         if across > 0.1 * v.norm() {
             assert!(
                 got_deg > 0.0,

@@ -11,7 +11,7 @@
 //! central differences. Where the two models describe the same physics they must agree to 1%;
 //! where they differ the difference is the named term docs/tpu.md states.
 
-use crate::common::{self, raise_max};
+use crate::common::{self, max_of, raise_max};
 use kinescan::app::tpu::{inspect, Inspected};
 use kinescan::geo::ellipsoid::r_n_to_e;
 use kinescan::geo::projection::MapFrame;
@@ -222,7 +222,7 @@ fn leeward_range_and_sigmas_agree_where_the_models_agree() {
                     let theirs = c_map[(k, k)].sqrt();
                     let ours = ours.variances.var_m2[k].sqrt();
                     // Axes that carry < 1% of the group's 3D sigma are compared absolutely.
-                    let scale = theirs.max(0.01 * c_map.trace().sqrt());
+                    let scale = max_of([theirs, 0.01 * c_map.trace().sqrt()]);
                     raise_max(&mut worst, (ours - theirs).abs() / scale);
                 }
             }

@@ -346,8 +346,8 @@ fn a_foot_crs_has_z_and_sigmas_in_feet() {
         let s_m = f64::from(utm.1 .1[k][kz_utm]);
         let rel = (s_ft / s_m - 1.0).abs();
         assert!(dh.is_finite() && rel.is_finite(), "point {k}");
-        worst_h = worst_h.max(dh);
-        worst_sigma = worst_sigma.max(rel);
+        raise_max(&mut worst_h, dh);
+        raise_max(&mut worst_sigma, rel);
     }
     assert!(worst_h < 2e-4, "Z in feet off the height by {worst_h} m");
     assert!(
