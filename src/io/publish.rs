@@ -6,7 +6,8 @@
 //!
 //! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
 
-use super::atomic::{copy_atomic, create_temp_dir, parent_dir, sync_dir};
+use super::atomic::{copy_atomic, create_temp_dir, parent_dir, remove_stale_temps, sync_dir};
+use super::paths::{self, KeyedPath};
 use crate::{Error, Result};
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -162,6 +163,8 @@ pub fn publish_folder<T>(
     names: &[&str],
     write: impl FnOnce(&Path) -> Result<T>,
 ) -> Result<T> {
+    // A killed run's staging folder goes before this run stages its own.
+    remove_stale_temps(out_dir)?;
     let mut set = OutputSet::new(label);
     let last = out_dir.join(last);
     let staged = set.stage(&last)?;
@@ -185,9 +188,14 @@ impl StemLock {
     /// Takes the lock for outputs named after `las`, or fails at once naming the lock when
     /// another run holds it.
     pub fn acquire(las: &Path) -> Result<StemLock> {
-        let dir = parent_dir(las);
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let stem = las.file_stem().unwrap_or_default().to_string_lossy();
+        Self::acquire_in(parent_dir(las), &stem, las)
+    }
+
+    /// Takes the lock `.<stem>.kinescan-lock` in `dir`, or fails at once naming `what` (the
+    /// output or folder the user gave) and the lock when another run holds it.
+    pub fn acquire_in(dir: &Path, stem: &str, what: &Path) -> Result<StemLock> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let path = dir.join(format!(".{stem}.kinescan-lock"));
         let file = std::fs::OpenOptions::new()
             .create(true)
@@ -198,7 +206,7 @@ impl StemLock {
         match file.try_lock() {
             Ok(()) => Ok(StemLock { _file: file }),
             Err(std::fs::TryLockError::WouldBlock) => Err(Error::bad_file(
-                las,
+                what,
                 format!(
                     "another kinescan run is writing these outputs (it holds {}): wait for it \
                      to end, or write to another path",
@@ -211,29 +219,32 @@ impl StemLock {
 }
 
 /// The outputs a previous run listed in its report at `report` (`outputs[].path` and
-/// `sync[].plots[]`) that are named after `las`'s stem, taken in `las`'s folder (the report may
-/// hold paths relative to another working folder); none without a readable report.
-pub fn previous_outputs(report: &Path, las: &Path) -> Vec<PathBuf> {
+/// `sync[].plots[]`) that this run may remove ([`paths::removable`]): by file name in
+/// `folder`, named as this run would name them (`owned`), none of `inputs`. None without a
+/// readable report.
+pub fn previous_outputs(
+    report: &Path,
+    folder: &Path,
+    owned: impl Fn(&str) -> bool,
+    inputs: &[KeyedPath],
+) -> Vec<PathBuf> {
     let Ok(text) = std::fs::read(report) else {
         return Vec::new();
     };
     let Ok(json) = serde_json::from_slice::<serde_json::Value>(&text) else {
         return Vec::new();
     };
-    let stem = las.file_stem().unwrap_or_default().to_string_lossy();
     let outputs = json["outputs"].as_array().into_iter().flatten();
     let plots = json["sync"]
         .as_array()
         .into_iter()
         .flatten()
         .flat_map(|s| s["plots"].as_array().into_iter().flatten());
-    outputs
+    let listed = outputs
         .map(|o| &o["path"])
         .chain(plots)
-        .filter_map(|p| Path::new(p.as_str()?).file_name())
-        .filter(|name| name.to_string_lossy().starts_with(&*stem))
-        .map(|name| las.with_file_name(name))
-        .collect()
+        .filter_map(|p| p.as_str().map(PathBuf::from));
+    paths::removable(listed, folder, owned, inputs)
 }
 
 /// Removes the files of `previous` that this run did not produce (`produced`), so a folder

@@ -25,7 +25,15 @@ pub fn publish_run(
     for dir in [parent(las), parent(&report_path)] {
         remove_stale_temps(dir)?;
     }
-    let previous = previous_outputs(&report_path, las);
+    let stem = c.output.stem();
+    let owned = |name: &str| {
+        let named = name
+            .strip_prefix(&*stem)
+            .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
+        named && [".las", ".laz", ".png"].iter().any(|e| name.ends_with(e))
+    };
+    let inputs = super::files::inputs(p);
+    let previous = previous_outputs(&report_path, parent(las), owned, &inputs);
     let mut set = OutputSet::new(&c.output.stem());
     let mut staged = p.clone();
     staged.config.output.las = set.stage(las)?.into();

@@ -110,7 +110,10 @@ fn diagnose_passes(day: &LoadedDay, plan: &Plan, patches: &Path) -> Result<Vec<P
     let out = day.config.day.out.to_path_buf();
     let mut found = Vec::new();
     for (pass, p) in day.config.passes.iter().enumerate() {
-        let pipeline = resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
+        let mut pipeline =
+            resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
+        // The template's own setting, not the units' (a `corrected.toml` carries it).
+        pipeline.config.output.allow_empty = day.template.config.output.allow_empty;
         let folder = out.join(format!("diagnosis_{}", p.name));
         let req = Request {
             patches: patches.to_path_buf(),
