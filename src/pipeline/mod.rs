@@ -154,14 +154,17 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
     inputs.iter().for_each(|i| totals.merge(&i.counts));
     let outputs = summaries
         .into_iter()
-        .map(|s| OutputReport {
-            path: s.path,
-            points: s.point_count,
-            min_m: s.min_m,
-            max_m: s.max_m,
-            bytes: s.file_bytes,
+        .map(|s| {
+            Ok(OutputReport {
+                sha256: crate::io::digest::FileRecord::of("las", &s.path)?.sha256,
+                path: s.path,
+                points: s.point_count,
+                min_m: s.min_m,
+                max_m: s.max_m,
+                bytes: s.file_bytes,
+            })
         })
-        .collect();
+        .collect::<crate::Result<_>>()?;
     Ok(RunReport {
         kinescan_version: env!("CARGO_PKG_VERSION").into(),
         files: prepared.files,

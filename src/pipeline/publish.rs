@@ -6,8 +6,7 @@
 
 use super::config::LoadedPipeline;
 use super::report::RunReport;
-use crate::io::atomic::remove_stale_temps;
-use crate::io::publish::{conclude, previous_outputs, OutputSet, StemLock};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::Result;
 use std::path::Path;
 
@@ -23,7 +22,7 @@ pub fn publish_run(
     let report_path = c.output.report_path();
     let _lock = StemLock::acquire(las)?;
     for dir in [parent(las), parent(&report_path)] {
-        remove_stale_temps(dir)?;
+        prepare_folder(dir)?;
     }
     let stem = c.output.stem();
     let owned = |name: &str| {

@@ -248,3 +248,87 @@ fn diagnose_into_a_file_says_so() {
     assert!(!e.contains("os error 17"), "{e}");
     assert_eq!(std::fs::read(d.join("notes.txt")).unwrap(), b"mine");
 }
+
+/// A run killed between the renames of its set (three split parts and the report; the test
+/// hook aborts the process after the second rename, as `strace -e inject=rename:signal=KILL`
+/// would): the folder mixes two runs and `info` says so; the next command that writes the
+/// folder (here a run that then fails) first completes the publication from its journal, and
+/// the folder holds the killed run's whole set, which `info` confirms.
+#[test]
+fn a_kill_between_the_renames_of_a_set_is_completed_by_the_next_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::one_pass_survey(d, 200);
+    let split = [
+        "--set",
+        "output.split=\"max_points\"",
+        "--set",
+        "output.max_points_per_file=3000",
+    ];
+    let run = |extra: &[&str], envs: &[(&str, &str)]| {
+        let mut args = vec!["run", "pipeline.toml", "--threads", "1"];
+        args.extend_from_slice(&split);
+        args.extend_from_slice(extra);
+        std::process::Command::new(env!("CARGO_BIN_EXE_kinescan"))
+            .args(&args)
+            .envs(envs.iter().copied())
+            .current_dir(d)
+            .output()
+            .unwrap()
+    };
+    let parts = ["day_0001.las", "day_0002.las", "day_0003.las"];
+    ok(&run(&[], &[]));
+    let old: Vec<Vec<u8>> = parts
+        .iter()
+        .map(|p| sha256(&d.join("out").join(p)))
+        .collect();
+    // The new set's bytes, from the same run into another folder.
+    let latency = ["--set", "latency.attitude_s=0.001"];
+    let reference = [&latency[..], &["--set", "output.las=\"ref/day.las\""]].concat();
+    ok(&run(&reference, &[]));
+    let new: Vec<Vec<u8>> = parts
+        .iter()
+        .map(|p| sha256(&d.join("ref").join(p)))
+        .collect();
+    assert!(old.iter().zip(&new).all(|(o, n)| o != n), "the runs differ");
+    let o = run(&latency, &[("KINESCAN_TEST_ABORT_AFTER_RENAMES", "2")]);
+    assert!(!o.status.success(), "the hook did not stop the run");
+    let mid: Vec<Vec<u8>> = parts
+        .iter()
+        .map(|p| sha256(&d.join("out").join(p)))
+        .collect();
+    assert_eq!(mid, [new[0].clone(), new[1].clone(), old[2].clone()]);
+    let info = kinescan(d, &["info", "out"]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(!info.status.success(), "{text}");
+    assert!(text.contains("interrupted publication"), "{text}");
+    // The next command writing the folder: completes, then fails on its own (no t0).
+    let o = run(&["--set", "time.t0_s=1000"], &[]);
+    refused_plain(&o);
+    let after: Vec<Vec<u8>> = parts
+        .iter()
+        .map(|p| sha256(&d.join("out").join(p)))
+        .collect();
+    assert_eq!(after, new);
+    let info = kinescan(d, &["info", "out"]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(info.status.success() && text.contains("whole"), "{text}");
+    let left: Vec<String> = std::fs::read_dir(d.join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains(".kinescan-") && !n.ends_with(".kinescan-lock"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
+    // A report lists every output with its SHA-256; a changed file makes the set not whole.
+    std::fs::write(d.join("out/day_0002.las"), b"changed").unwrap();
+    let info = kinescan(d, &["info", "out"]);
+    let text = String::from_utf8_lossy(&info.stdout);
+    assert!(
+        !info.status.success() && text.contains("day_0002.las has other bytes"),
+        "{text}"
+    );
+}
+
+fn refused_plain(o: &Output) {
+    assert!(!o.status.success(), "not refused: {}", stderr(o));
+}

@@ -129,6 +129,10 @@ pub fn load(path: &Path) -> Result<LoadedDay> {
             return Err(Error::config(&parsed.source, key, problem));
         }
     }
+    if !c.day.template.is_file() {
+        let problem = format!("template {} is not a file", c.day.template.display());
+        return Err(Error::config(&parsed.source, "day.template", problem));
+    }
     // The template is checked with the first pass's files (its own list may be empty).
     let files: Vec<toml::Value> = c.passes[0]
         .profiles
@@ -186,8 +190,11 @@ pub const FILES: [&str; 6] = [
     "report.html",
     "plan.json",
     "journal.jsonl",
-    super::night::CORRECTIONS,
+    CORRECTIONS,
 ];
+
+/// The night's diagnosis and corrections of every pass (`night`).
+pub const CORRECTIONS: &str = "corrections.json";
 
 /// Every file a day may write or remove, named by its key: the pass LAS files (or every
 /// existing `*.las` its tiles may replace), its reports, plan, journal and corrections.

@@ -23,8 +23,8 @@ pub mod plan;
 pub mod quality;
 pub mod units;
 
-use crate::io::atomic::{remove_stale_temps, write_atomic, write_json};
-use crate::io::publish::{conclude, previous_outputs, OutputSet, StemLock};
+use crate::io::atomic::{write_atomic, write_json};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
 use crate::pipeline::RunOptions;
@@ -97,6 +97,8 @@ pub struct OutputFile {
     pub path: PathBuf,
     /// Points.
     pub points: u64,
+    /// SHA-256 of the file, hex: `kinescan info FOLDER` checks the set against it.
+    pub sha256: String,
 }
 
 /// Runs `step` of the day file `path`; gives the report when the day was published.
@@ -118,7 +120,7 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
         .into_iter()
         .chain(diagnoses)
     {
-        remove_stale_temps(&dir)?;
+        prepare_folder(&dir)?;
     }
     let mut timings = BTreeMap::new();
     let started = Instant::now();
@@ -373,11 +375,14 @@ fn day_report(
     }
     let outputs: Vec<OutputFile> = summaries
         .iter()
-        .map(|s| OutputFile {
-            path: set.final_path(&s.path),
-            points: s.point_count,
+        .map(|s| {
+            Ok(OutputFile {
+                path: set.final_path(&s.path),
+                points: s.point_count,
+                sha256: crate::io::digest::FileRecord::of("las", &s.path)?.sha256,
+            })
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let merged: u64 = outputs.iter().map(|o| o.points).sum();
     if merged != totals.written || totals.read != totals.written + totals.rejected_total() {
         return Err(Error::Invalid(format!(

@@ -17,8 +17,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
-/// File of the decided corrections in the day's output folder (`auto_correct = true`).
-pub const CORRECTIONS: &str = "corrections.json";
+pub use super::config::CORRECTIONS;
 
 /// One pass's diagnosis in the day report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
