@@ -243,7 +243,10 @@ proptest::proptest! {
         let returns: Vec<RawReturn> = values
             .iter()
             .enumerate()
-            .filter(|(_, (b, _, a, t))| b.is_finite() && a.is_finite() && t.is_finite())
+            // Mirror angles beyond 2 pi are refused (degrees, issue #23).
+            .filter(|(_, (b, _, a, t))| {
+                b.is_finite() && b.abs() <= std::f64::consts::TAU && a.is_finite() && t.is_finite()
+            })
             .map(|(i, &(beta_rad, range_m, alpha_rad, time_s))| RawReturn {
                 profile: i as u32, intensity, beta_rad, range_m, alpha_rad, time_s,
             })
