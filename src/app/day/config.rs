@@ -236,6 +236,7 @@ pub fn check_files(day: &LoadedDay) -> Result<()> {
         .filter(|(k, _)| k.starts_with("passes["))
         .collect();
     paths::check_distinct_inputs(&profiles)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", day.source)))
 }
 
 fn check(c: &DayConfig) -> std::result::Result<(), (String, String)> {
