@@ -8,6 +8,7 @@
 //!   points or on a simulated survey's returns).
 //! - [`tpu`]: per-point uncertainty for a cloud georeferenced elsewhere (`kinescan tpu`,
 //!   docs/tpu.md).
+//! - [`verify`]: whether a folder's output sets are whole (`kinescan info FOLDER`).
 //!
 //! A new command that chains stages (e.g. a batch of days) goes here, as its own module,
 //! calling the pipeline's stages ([`crate::pipeline`]) and libraries.
@@ -17,3 +18,4 @@ pub mod demo;
 pub mod diagnose;
 pub mod sensitivity;
 pub mod tpu;
+pub mod verify;

@@ -87,14 +87,27 @@ pub(crate) fn remove_stale_temps(dir: &std::path::Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--threads N`: a whole number >= 1.
+/// `--threads N`: a whole number >= 1; above [`MAX_THREADS_PER_CPU`] times the machine's
+/// CPUs it is clamped there, with a warning (more threads only cost memory and switches).
 pub(crate) fn threads(s: &str) -> Result<usize, String> {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     match s.parse::<usize>() {
         Ok(0) => Err("must be at least 1 (omit it to use every core)".into()),
+        Ok(n) if n > MAX_THREADS_PER_CPU * cpus => {
+            let max = MAX_THREADS_PER_CPU * cpus;
+            eprintln!(
+                "warning: --threads {n} is more than {MAX_THREADS_PER_CPU} times this machine's \
+                 {cpus} CPUs: using {max} threads"
+            );
+            Ok(max)
+        }
         Ok(n) => Ok(n),
         Err(e) => Err(format!("`{s}` is not a whole number: {e}")),
     }
 }
+
+/// The most threads per CPU `--threads` starts.
+const MAX_THREADS_PER_CPU: usize = 4;
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
 pub fn run() -> ExitCode {

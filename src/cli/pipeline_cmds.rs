@@ -60,7 +60,8 @@ pub struct ImportArgs {
   kinescan info out/city_block.las
   kinescan info pass1.ksprof --json")]
 pub struct InfoArgs {
-    /// File to describe.
+    /// File to describe, or an output folder: whether its sets are whole (each file a report
+    /// lists there with its SHA-256, no publication interrupted).
     file: PathBuf,
     /// Print JSON instead of text.
     #[arg(long)]
@@ -145,6 +146,25 @@ pub fn import(a: &ImportArgs, quiet: bool) -> Result<()> {
 }
 
 pub fn info(a: &InfoArgs) -> Result<()> {
+    if a.file.is_dir() {
+        let c = kinescan::app::verify::check_folder(&a.file)?;
+        if c.sets.is_empty() && c.interrupted.is_empty() {
+            anyhow::bail!(
+                "{}: a directory without output reports (*.report.json): `info` describes a \
+                 file, or the output sets of a folder that a command wrote",
+                a.file.display()
+            );
+        }
+        if a.json {
+            println!("{}", serde_json::to_string_pretty(&c)?);
+        } else {
+            println!("{c}");
+        }
+        if !c.whole() {
+            anyhow::bail!("{}: output sets not whole (see above)", a.file.display());
+        }
+        return Ok(());
+    }
     let i = kinescan::io::info::describe(&a.file)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&i)?);

@@ -312,6 +312,13 @@ pub fn into_format(format: OutputFormat, files: Vec<LasSummary>) -> Result<Vec<L
         .into_iter()
         .map(|mut s| {
             let laz = s.path.with_extension(format.extension());
+            if laz == s.path {
+                // `output.las` already has the format's extension: the uncompressed file
+                // moves aside, else it would be removed under the compressed one's name.
+                let aside = s.path.with_extension("uncompressed.las");
+                std::fs::rename(&s.path, &aside).map_err(|e| Error::io(&s.path, e))?;
+                s.path = aside;
+            }
             let sizes = match format {
                 OutputFormat::Copc => {
                     crate::io::copc::write_copc(&s.path, &laz, crate::io::copc::LEAF_POINTS)?

@@ -256,7 +256,9 @@ fn returns_outside_the_smrmsg_span_are_rejected() {
     );
     let raw = write_profiles(&dir.path().join("pass.ksprof"), 2);
     let path = write_pipeline(dir.path(), "short.smrmsg", FULL);
-    let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();
+    // Half the returns are outside the SMRMSG on purpose (the default limit is 5%).
+    let set = ["output.max_rejected_share = 1".to_string()];
+    let report = run(&config::load(&path, &set).unwrap(), &quiet()).unwrap();
     let outside = raw
         .iter()
         .filter(|r| {

@@ -24,8 +24,8 @@ pub mod plan;
 pub mod quality;
 pub mod units;
 
-use crate::io::atomic::{remove_stale_temps, write_atomic, write_json};
-use crate::io::publish::{conclude, OutputSet, StemLock};
+use crate::io::atomic::{write_atomic, write_json};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
 use crate::pipeline::RunOptions;
@@ -117,19 +117,30 @@ pub struct OutputFile {
     pub min: [f64; 3],
     /// Header maximum X, Y, Z (file units).
     pub max: [f64; 3],
+    /// SHA-256 of the file, hex: `kinescan info FOLDER` checks the set against it.
+    pub sha256: String,
 }
 
 /// Runs `step` of the day file `path`; gives the report when the day was published.
 pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayReport>> {
     let day = config::load(path)?;
+    config::check_files(&day)?;
     let out = day.config.day.out.to_path_buf();
     std::fs::create_dir_all(out.join("units")).map_err(|e| Error::io(&out, e))?;
     let _lock = match step {
         Step::Unit(_) => None,
-        _ => Some(StemLock::acquire(&out.join("day.las"))?),
+        _ => Some(StemLock::acquire_in(&out, "day", &out)?),
     };
-    for dir in [out.clone(), out.join("units")] {
-        remove_stale_temps(&dir)?;
+    let diagnoses = day
+        .config
+        .passes
+        .iter()
+        .map(|p| out.join(format!("diagnosis_{}", p.name)));
+    for dir in [out.clone(), out.join("units")]
+        .into_iter()
+        .chain(diagnoses)
+    {
+        prepare_folder(&dir)?;
     }
     let mut timings = BTreeMap::new();
     let started = Instant::now();
@@ -325,7 +336,7 @@ fn publish(
 ) -> Result<DayReport> {
     let out = day.config.day.out.to_path_buf();
     let report_path = out.join("day.report.json");
-    let previous = previous_outputs(&report_path);
+    let previous = previous_outputs(&report_path, &out, las_of_day, &config::inputs(day));
     let mut set = OutputSet::new("day");
     let result = merge::merge(day, plan, done, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
@@ -346,6 +357,12 @@ fn publish(
         Ok(report)
     });
     conclude(set, result, &report_path, &previous)
+}
+
+/// A LAS file the day may write (a pass or tile file): only those of a previous report's
+/// list may be removed.
+fn las_of_day(name: &str) -> bool {
+    name.ends_with(".las") && config::owns(name)
 }
 
 fn day_report(
@@ -408,14 +425,17 @@ fn day_report(
     };
     let outputs: Vec<OutputFile> = summaries
         .iter()
-        .map(|s| OutputFile {
-            path: set.final_path(&s.path),
-            points: s.point_count,
-            bytes: s.file_bytes,
-            min: s.min_m,
-            max: s.max_m,
+        .map(|s| {
+            Ok(OutputFile {
+                path: set.final_path(&s.path),
+                points: s.point_count,
+                bytes: s.file_bytes,
+                min: s.min_m,
+                max: s.max_m,
+                sha256: crate::io::digest::FileRecord::of("las", &s.path)?.sha256,
+            })
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let merged: u64 = outputs.iter().map(|o| o.points).sum();
     if merged != totals.written || totals.read != totals.written + totals.rejected_total() {
         return Err(Error::Invalid(format!(
@@ -442,16 +462,4 @@ fn day_report(
         sigma: Vec::new(),
         diagnosis: Vec::new(),
     })
-}
-
-/// The LAS files the previous day report at `report` lists (none without one).
-fn previous_outputs(report: &Path) -> Vec<PathBuf> {
-    let Ok(text) = std::fs::read(report) else {
-        return Vec::new();
-    };
-    let json: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
-    let outputs = json["outputs"].as_array().into_iter().flatten();
-    outputs
-        .filter_map(|o| o["path"].as_str().map(PathBuf::from))
-        .collect()
 }

@@ -19,12 +19,12 @@ pub mod report;
 pub mod scanner;
 pub mod write;
 
-use crate::io::atomic::{create_temp_dir, remove_stale_temps, AtomicFile};
+use crate::io::atomic::{create_temp_dir, AtomicFile};
 use crate::io::digest::FileRecord;
 use crate::io::las::read::LasInput;
 use crate::io::las::{encode_extra, GpsTimeConvention, LasPoint};
 use crate::io::paths::check_collisions;
-use crate::io::publish::{conclude, previous_outputs, OutputSet, StemLock};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::pipeline::config::{LoadedTpuPipeline, OutputFormat, Strictness};
 use crate::pipeline::report::{OutputReport, StageTiming};
 use crate::pipeline::schema::{OutputSchema, PointFill};
@@ -90,9 +90,18 @@ pub fn tpu(p: &LoadedTpuPipeline, cloud: &Path, opts: &TpuOptions) -> Result<Tpu
     check_collisions(&inputs, &outputs)?;
     let _lock = StemLock::acquire(&c.output.las)?;
     for dir in [parent(&out), parent(&report_path)] {
-        remove_stale_temps(dir)?;
+        prepare_folder(dir)?;
     }
-    let previous = previous_outputs(&report_path, &c.output.las);
+    // A previous report's list is a hint: only this stem's clouds, in this folder, never an
+    // input (docs/robustness.md).
+    let stem = c.output.stem();
+    let owned = |name: &str| {
+        let named = name
+            .strip_prefix(&*stem)
+            .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
+        named && [".las", ".laz"].iter().any(|e| name.ends_with(e))
+    };
+    let previous = previous_outputs(&report_path, parent(&c.output.las), owned, &inputs);
     let mut set = OutputSet::new(&c.output.stem());
     let staged_las = set.stage(&c.output.las)?;
     let staged_report = set.stage(&report_path)?;
@@ -208,12 +217,14 @@ fn stages(
         let b = &layout.prefix;
         f64::from_le_bytes(b[at..at + 8].try_into().expect("8"))
     };
+    let sha256 = FileRecord::of("las", &final_path)?.sha256;
     let outputs = vec![OutputReport {
         path: final_path,
         points: input.point_count,
         min_m: [min_max(187), min_max(203), min_max(219)],
         max_m: [min_max(179), min_max(195), min_max(211)],
         bytes,
+        sha256,
     }];
     Ok(TpuReport {
         kinescan_version: env!("CARGO_PKG_VERSION").into(),

@@ -180,6 +180,11 @@ pub struct OutputConfig {
     /// Accept a run that writes no point (default: such a run fails and keeps the old output).
     #[serde(default)]
     pub allow_empty: bool,
+    /// Largest share (0..1) of the returns read that may be rejected for any reason but a
+    /// missing return (no echo): above it the run fails, publishing nothing, and names the
+    /// likely cause (a wrong clock, range limits...). Default 0.05.
+    #[serde(default = "default_max_rejected_share")]
+    pub max_rejected_share: f64,
     /// File splitting.
     #[serde(default = "default_split")]
     pub split: SplitMode,
@@ -202,6 +207,10 @@ pub struct OutputConfig {
     pub return_index_dimension: bool,
 }
 
+fn default_max_rejected_share() -> f64 {
+    0.05
+}
+
 impl OutputConfig {
     /// Checks the scale, offset, split and frame.
     pub(super) fn check(&self) -> Result<(), Refusal> {
@@ -209,6 +218,11 @@ impl OutputConfig {
             let v = self.scale_m;
             let problem = format!("must be in (0, 0.001] m (quantisation <= 0.5 mm), got {v}");
             return Err(refuse("output.scale_m", problem));
+        }
+        if !(0.0..=1.0).contains(&self.max_rejected_share) {
+            let v = self.max_rejected_share;
+            let problem = format!("a share: must be in [0, 1] (0.05 is 5%), got {v}");
+            return Err(refuse("output.max_rejected_share", problem));
         }
         if let Some(offset) = &self.offset_m {
             require_finite(super::refusal::elements("output.offset_m", offset))?;
