@@ -341,6 +341,15 @@ impl StemLock {
     }
 }
 
+/// Whether file name `name` is an output of stem `stem` with one of `extensions`: `<stem>.*`
+/// or `<stem>_*` (a split or a tile), the names a run may replace.
+pub fn stem_owns(stem: &str, name: &str, extensions: &[&str]) -> bool {
+    let named = name
+        .strip_prefix(stem)
+        .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
+    named && extensions.iter().any(|e| name.ends_with(e))
+}
+
 /// The outputs a previous run listed in its report at `report` (`outputs[].path` and
 /// `sync[].plots[]`) that this run may remove ([`paths::removable`]): by file name in
 /// `folder`, named as this run would name them (`owned`), none of `inputs`. None without a

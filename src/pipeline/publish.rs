@@ -6,7 +6,9 @@
 
 use super::config::LoadedPipeline;
 use super::report::RunReport;
-use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
+use crate::io::publish::{
+    conclude, prepare_folder, previous_outputs, stem_owns, OutputSet, StemLock,
+};
 use crate::Result;
 use std::path::Path;
 
@@ -25,12 +27,7 @@ pub fn publish_run(
         prepare_folder(dir)?;
     }
     let stem = c.output.stem();
-    let owned = |name: &str| {
-        let named = name
-            .strip_prefix(&*stem)
-            .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
-        named && [".las", ".laz", ".png"].iter().any(|e| name.ends_with(e))
-    };
+    let owned = |name: &str| stem_owns(&stem, name, &[".las", ".laz", ".png"]);
     let inputs = super::files::inputs(p);
     let previous = previous_outputs(&report_path, parent(las), owned, &inputs);
     let mut set = OutputSet::new(&c.output.stem());

@@ -24,7 +24,9 @@ use crate::io::digest::FileRecord;
 use crate::io::las::read::LasInput;
 use crate::io::las::{encode_extra, GpsTimeConvention, LasPoint};
 use crate::io::paths::check_collisions;
-use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
+use crate::io::publish::{
+    conclude, prepare_folder, previous_outputs, stem_owns, OutputSet, StemLock,
+};
 use crate::pipeline::config::{LoadedTpuPipeline, OutputFormat, Strictness};
 use crate::pipeline::report::{OutputReport, StageTiming};
 use crate::pipeline::schema::{OutputSchema, PointFill};
@@ -95,12 +97,7 @@ pub fn tpu(p: &LoadedTpuPipeline, cloud: &Path, opts: &TpuOptions) -> Result<Tpu
     // A previous report's list is a hint: only this stem's clouds, in this folder, never an
     // input (docs/robustness.md).
     let stem = c.output.stem();
-    let owned = |name: &str| {
-        let named = name
-            .strip_prefix(&*stem)
-            .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
-        named && [".las", ".laz"].iter().any(|e| name.ends_with(e))
-    };
+    let owned = |name: &str| stem_owns(&stem, name, &[".las", ".laz"]);
     let previous = previous_outputs(&report_path, parent(&c.output.las), owned, &inputs);
     let mut set = OutputSet::new(&c.output.stem());
     let staged_las = set.stage(&c.output.las)?;
