@@ -20,7 +20,7 @@ mod sensor;
 mod sync;
 mod uncertainty;
 
-pub use diagnose::DiagnoseConfig;
+pub use diagnose::{DiagnoseConfig, START_NAV_TAU_S};
 pub use inputs::{InputsConfig, TrajectoryConfig};
 pub use output::{FrameConfig, OutputConfig, OutputFormat, SplitMode, Strictness};
 use refusal::refuse;

@@ -21,7 +21,7 @@ use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::{read_patches, PlanarPatch};
 use crate::io::points::{read_control_points, ControlPoint};
 use crate::io::profiles::{ProfileFile, RawReturn};
-use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
+use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel, START_NAV_TAU_S};
 use crate::pipeline::prepare::{open_profiles, PreparedInput};
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
@@ -262,13 +262,12 @@ impl<'a> ReturnModel<'a> {
             attitude_latency_s: c.latency.attitude_s,
             position_latency_s: c.latency.position_s,
             range_limits_m: (c.sensor.min_range_m, c.sensor.max_range_m),
-            nav_tau_s: c.diagnose.as_ref().map_or_else(
-                || {
-                    let d = DiagnoseConfig::default();
-                    [d.nav_position_tau_s, d.nav_attitude_tau_s]
-                },
-                |d| [d.nav_position_tau_s, d.nav_attitude_tau_s],
-            ),
+            nav_tau_s: c.diagnose.as_ref().map_or(START_NAV_TAU_S, |d| {
+                [
+                    d.nav_position_tau_s.unwrap_or(START_NAV_TAU_S[0]),
+                    d.nav_attitude_tau_s.unwrap_or(START_NAV_TAU_S[1]),
+                ]
+            }),
             white: c.uncertainty.as_ref().map_or(
                 WhiteSigmas {
                     alpha_rad: 0.0,
