@@ -4,6 +4,7 @@
 //! printed numbers.
 //!
 //! `cargo bench --bench diagnose`; `KINESCAN_BENCH_REPS` (default 3) runs.
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use kinescan::app::diagnose::{self, Request};
 use kinescan::pipeline::config;

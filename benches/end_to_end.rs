@@ -16,6 +16,7 @@
 //! to keep the generated survey for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case
 //! alone, `KINESCAN_BENCH_CASE=day` for `kinescan day` against `kinescan run` ([`day_case`]).
 //! See docs/performance.md.
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
 use kinescan::io::sbet::{SbetRecord, SbetWriter};

@@ -1,5 +1,6 @@
 //! Per-point cost of the geodesy used on every LAS point: ECEF -> geodetic, ECEF -> UTM, and a
 //! 1e6-point ECEF -> UTM batch (a 2 km x 2 km mobile-mapping block in zone 32N).
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use kinescan::geo::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, Geodetic};

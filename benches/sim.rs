@@ -6,6 +6,7 @@
 //! system) are printed beside wall-clock time: on a shared machine they show the work done.
 //!
 //! `cargo bench --bench sim`; `KINESCAN_SIM_BENCH_S="20,80"` sets the two durations (s).
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use kinescan::sim::{simulate, SimOptions};
 use std::path::Path;

@@ -2,6 +2,7 @@
 //! `ReturnTerms` + ECEF point (what every return costs), the run's [`Propagator`] (what the
 //! `[uncertainty]` table adds per return), and the reference Jacobian + `J Q J^T` (the tested
 //! model, for comparison). 1024 returns of a 40 m street section seen from a moving van.
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use kinescan::geo::ellipsoid::r_n_to_e;

@@ -8,6 +8,7 @@
 //!
 //! The case: paper 003's "expected" sigmas plus INS sigmas and timing terms, a van turning at
 //! 20 deg/s and rolling at 10 deg/s, a return at 30 m.
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 use kinescan::app::sensitivity::{
     enu_error_model, flat_ground_point, load_sensitivity, study_sigmas,

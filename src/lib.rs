@@ -42,6 +42,7 @@
 //! - **errors**: [`Error`] (every message names the file and record, or the config key) and
 //!   [`Result`].
 #![forbid(unsafe_op_in_unsafe_fn)]
+#![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
 pub mod app;
 pub mod calib;
@@ -55,6 +56,8 @@ pub mod plot;
 pub mod progress;
 pub mod sim;
 pub mod sync;
+#[doc(hidden)]
+pub mod testing;
 pub mod timing;
 pub mod trajectory;
 pub mod uncertainty;

@@ -76,9 +76,9 @@ def check(path, epsg, dims, count, gps_time, shares=(), vertical=None):
 
         v = np.stack([np.asarray(a, dtype=float) for a in share_values])
         total = v.sum(axis=0)
-        if v.min() < 0 or v.max() > 1 + 1e-9:
+        if not (v.min() >= 0 and v.max() <= 1 + 1e-9):  # NaN-proof (numpy min/max keep NaN)
             failures.append(f"shares outside [0, 1]: {v.min()}..{v.max()}")
-        off = np.abs(total - 1.0) > len(shares) * SHARE_STEP / 2 + 1e-9
+        off = ~(np.abs(total - 1.0) <= len(shares) * SHARE_STEP / 2 + 1e-9)
         if np.any(off & (total != 0)):
             failures.append(f"{int(np.sum(off & (total != 0)))} points whose shares do not sum to 1")
     if crs is not None and vertical is not None:
@@ -98,7 +98,7 @@ def check(path, epsg, dims, count, gps_time, shares=(), vertical=None):
         for axis, lo, hi in (("x", h.mins[0], h.maxs[0]), ("y", h.mins[1], h.maxs[1]),
                              ("z", h.mins[2], h.maxs[2])):
             v = getattr(las, axis)
-            if abs(v.min() - lo) > 1e-9 or abs(v.max() - hi) > 1e-9:
+            if not (abs(v.min() - lo) <= 1e-9 and abs(v.max() - hi) <= 1e-9):
                 failures.append(f"header {axis} bounds {lo}..{hi}, points {v.min()}..{v.max()}")
     with open(path, "rb") as f:
         legacy = struct.unpack_from("<6I", f.read(131), 107)

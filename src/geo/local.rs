@@ -164,7 +164,7 @@ mod tests {
                 let east_m = (lon - exact.lon_rad)
                     * prime_vertical_radius_m(exact.lat_rad)
                     * exact.lat_rad.cos();
-                worst_m = worst_m.max(north_m.hypot(east_m));
+                crate::testing::raise_max(&mut worst_m, north_m.hypot(east_m));
             }
             assert!(
                 worst_m > 0.0 && worst_m <= bound_m,

@@ -191,6 +191,23 @@ mod tests {
                 )
             })
             .collect();
+        // A path this CPU cannot run is a skip, a failure where CI forces it
+        // (`KINESCAN_REQUIRE_AVX2=1` / `KINESCAN_REQUIRE_AVX512=1`: `.ci/run` sets them from
+        // /proc/cpuinfo).
+        #[cfg(target_arch = "x86_64")]
+        let (avx2, avx512) = (
+            std::arch::is_x86_feature_detected!("avx2"),
+            std::arch::is_x86_feature_detected!("avx512f"),
+        );
+        #[cfg(not(target_arch = "x86_64"))]
+        let (avx2, avx512) = (false, false);
+        let test = "batch_equals_one_return_at_a_time_bit_for_bit";
+        if !avx2 {
+            crate::testing::skip("KINESCAN_REQUIRE_AVX2", test, "no AVX2 on this CPU");
+        }
+        if !avx512 {
+            crate::testing::skip("KINESCAN_REQUIRE_AVX512", test, "no AVX-512F on this CPU");
+        }
         for groups in [false, true] {
             let p = Propagator::new(inputs, groups, sensor.lever_arm_b_m, sensor.r_s_to_b);
             // Every path this CPU can run: dispatched, baseline, AVX2, AVX-512.
@@ -204,12 +221,12 @@ mod tests {
             run(&|b| b.propagate(&p));
             run(&|b| b.propagate_lanes(&p));
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if avx2 {
                 // SAFETY: the CPU has AVX2.
                 run(&|b| unsafe { b.propagate_avx2(&p) });
             }
             #[cfg(target_arch = "x86_64")]
-            if std::arch::is_x86_feature_detected!("avx512f") {
+            if avx512 {
                 // SAFETY: the CPU has AVX-512F.
                 run(&|b| unsafe { b.propagate_avx512(&p) });
             }

@@ -2,7 +2,8 @@
 """Cramer-Rao bound of the tripod boresight calibration (docs/calibration.md), independent of
 kinescan's estimator: the oracle for tests/calib_boresight.rs `estimator_attains_the_bound`.
 
-    python3 boresight_crb.py     # prints the bound (1-sigma, deg, at 1 mm centre noise)
+    python3 boresight_crb.py          # prints the bound (1-sigma, deg, at 1 mm centre noise)
+    python3 boresight_crb.py --check  # CI: the bounds calib_boresight.rs hard-codes are these
 
 Model, from first principles (convention frames): tripod apex at the NED origin, legs
 w_i = Rot(phi) e_i (60 deg off the vertical axis, azimuths a_i about it, the Rust simulator's
@@ -15,6 +16,10 @@ position t_k (3): 15, from 18 centre coordinates with iid noise sigma. The bound
 sigma^2 (J^T J)^-1 with J by central differences at the truth (the scenario's misalignment).
 IMU attitudes are exact.
 """
+
+import re
+import sys
+from pathlib import Path
 
 import numpy as np
 
@@ -87,7 +92,38 @@ def bound_deg(sites_deg, order="zyx", azimuths_deg=(15, 135, 255), cut_depth_m=0
 
 PAPER_SITES = [(-20, 0, 30), (0, 20, 120), (20, -20, 240)]
 
+RUST_TEST = Path(__file__).resolve().parent.parent / "suite" / "calib_boresight.rs"
+
+
+def hard_coded(order):
+    """The bound calib_boresight.rs hard-codes for `order` (BOUND_ZYX_1MM_DEG / BOUND_XYZ_...)."""
+    text = RUST_TEST.read_text()
+    m = re.search(rf"const BOUND_{order.upper()}_1MM_DEG: \[f64; 3\] = \[([^\]]*)\];", text)
+    if m is None:
+        sys.exit(f"{RUST_TEST}: no BOUND_{order.upper()}_1MM_DEG constant")
+    return [float(v) for v in m.group(1).split(",")]
+
+
+def check():
+    """The hard-coded bounds are this oracle's, to their 5 printed decimals (half a unit of the
+    last decimal, plus float slack); `not diff <= tol` so a NaN fails."""
+    failures = []
+    for order in ("zyx", "xyz"):
+        ours = bound_deg(PAPER_SITES, order)
+        for k, (a, b) in enumerate(zip(ours, hard_coded(order))):
+            if not abs(a - b) <= 0.5e-5 + 1e-9:
+                failures.append(f"{order} angle {k}: oracle {a:.6f}, calib_boresight.rs {b}")
+        print(order, "oracle", np.round(ours, 5), "hard-coded", hard_coded(order))
+    if failures:
+        print("FAIL:\n  " + "\n  ".join(failures))
+        return 1
+    print("calib_boresight.rs bounds match the oracle")
+    return 0
+
+
 if __name__ == "__main__":
+    if sys.argv[1:] == ["--check"]:
+        sys.exit(check())
     for order in ("zyx", "xyz"):
         print(order, "roll/pitch/heading 1-sigma (deg) at 1 mm:",
               np.round(bound_deg(PAPER_SITES, order), 5))

@@ -97,7 +97,7 @@ def check_csv(fresh, committed_path):
     for a, b in zip(fresh_rows, old_rows):
         for col in COLUMNS:
             if col in CHECK_TOL:
-                if abs(float(a[col]) - float(b[col])) > CHECK_TOL[col]:
+                if not abs(float(a[col]) - float(b[col])) <= CHECK_TOL[col]:  # NaN fails
                     errors.append(f"row {b['id']} {col}: committed {b[col]}, pyproj {a[col]}")
             elif a[col] != b[col]:
                 errors.append(f"row {b['id']} {col}: committed {b[col]}, regenerated {a[col]}")

@@ -67,8 +67,10 @@ def main():
             for i in range(d):
                 for key, ours_key in (("S1", "first"), ("ST", "total")):
                     diff = abs(s[key][i] - ours["same_sample"][k][i][ours_key])
-                    worst_same = max(worst_same, diff)
-                    if diff > TOL_SAME:
+                    # NaN-proof: max() keeps the first of (worst, nan) and `nan > tol` is
+                    # False, so the test is `not diff <= tol` and a NaN is reported.
+                    worst_same = diff if not diff <= worst_same else worst_same
+                    if not diff <= TOL_SAME:
                         failures.append(f"same-sample {out} {names[i]} {key}: diff {diff:.3e}")
 
         # 2. Independent samples.
@@ -85,8 +87,8 @@ def main():
                 print(f"{out:6} {names[i]:12} {o['first']:9.4f} {s['S1'][i]:9.4f} {o['total']:9.4f} {s['ST'][i]:9.4f}")
                 for key, ours_key in (("S1", "first"), ("ST", "total")):
                     diff = abs(s[key][i] - o[ours_key])
-                    worst = max(worst, diff)
-                    if diff > TOL_INDEPENDENT:
+                    worst = diff if not diff <= worst else worst
+                    if not diff <= TOL_INDEPENDENT:
                         failures.append(f"independent {out} {names[i]} {key}: ours {o[ours_key]:.4f} SALib {s[key][i]:.4f}")
     print(f"same samples: worst |difference| {worst_same:.2e} (bound {TOL_SAME})")
     print(f"independent samples: worst |difference| {worst:.4f} (bound {TOL_INDEPENDENT})")

@@ -145,7 +145,7 @@ fn robust_fit_with_ten_percent_outliers_stays_within_two_sigma() {
         // A plain fit that does not converge counts as infinitely far.
         let plain = fit_sphere(&all, SphereRadius::Known(RADIUS))
             .map_or(f64::INFINITY, |f| maha(f.centre_m));
-        worst_plain = worst_plain.min(plain);
+        worst_plain = crate::common::min_of([worst_plain, plain]);
     }
     println!("Mahalanobis distance to the clean fit: robust worst {worst_robust:.2}, plain best {worst_plain:.1}");
     // "Within 2 sigma of the clean fit" as a Mahalanobis distance, worst of 50 trials.

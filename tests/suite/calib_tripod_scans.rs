@@ -31,7 +31,7 @@ fn scan(
             let leg = legs
                 .iter()
                 .filter_map(|(c, s)| s.beam_hit(c, &u))
-                .reduce(f64::min);
+                .reduce(|a, b| crate::common::min_of([a, b]));
             let wall = wall_z
                 .filter(|_| u.y > 0.05)
                 .map(|z| z / u.y)
@@ -281,7 +281,7 @@ fn scans_config_and_input_errors() {
         .filter(|(_, l)| l.starts_with("2,") && l.ends_with(",100"))
         .map(|(i, l)| (i, l.split(',').nth(2).unwrap().parse().unwrap()))
         .collect();
-    let nearest = site2.iter().map(|x| x.1).fold(f64::INFINITY, f64::min);
+    let nearest = crate::common::min_of(site2.iter().map(|x| x.1));
     let cut: String = scans
         .lines()
         .enumerate()

@@ -325,10 +325,9 @@ fn a_day_per_pass_equals_kinescan_run_of_each_pass() {
             "<td>{name}</td><td>2</td><td>20000</td><td>{written}</td>"
         )));
     }
-    assert!(
-        md.find("## Warnings") < md.find("## Passes"),
-        "warnings first"
-    );
+    // Both sections present (None < Some(x) holds), the warnings first.
+    let (warnings, passes) = (md.find("## Warnings"), md.find("## Passes"));
+    assert!(warnings.unwrap() < passes.unwrap(), "warnings first");
 }
 
 /// Runs day file `day` (output folder `out`) cluster-style: the plan, then every unit as its

@@ -13,6 +13,7 @@ use kinescan::app::diagnose::report::{Diagnosis, Verdict};
 use kinescan::app::diagnose::{self, Request};
 use kinescan::pipeline::config;
 use kinescan::sim::{simulate_scenario, Scenario, SimOptions};
+use kinescan::testing::short_of;
 use std::path::Path;
 
 /// What a case injects and what a correct diagnosis says.
@@ -48,9 +49,10 @@ pub struct Score {
     pub normalised_errors: Vec<f64>,
     /// Share of the held-out excess chi2 (chi2/dof - 1) closed after the correction (after
     /// re-processing with the named effects, or by the model-free correction for
-    /// `unexplained`); NaN when the held-out gap before was not significant (no excess to
-    /// close) or the expected effects were not named (no re-processing with them).
-    pub closed: f64,
+    /// `unexplained`); `None` when the held-out gap before was not significant (no excess to
+    /// close) or the expected effects were not named (no re-processing with them). A
+    /// non-finite share is kept: it scores as a failure to close (see [`run_case`]).
+    pub closed: Option<f64>,
     /// A catalogue effect was named.
     pub named_any: bool,
     /// The expected covariate is the leading one (`unexplained`).
@@ -88,11 +90,7 @@ pub fn diagnose_dir(dir: &Path) -> kinescan::Result<Diagnosis> {
 /// Scores diagnosis `d` against `expect`.
 pub fn score(d: &Diagnosis, expect: &Expect) -> Score {
     let (b, a) = (d.gap.before.chi2_per_dof, d.gap.after.chi2_per_dof);
-    let closed = if excess_is_significant(&d.gap.before) {
-        (b - a) / (b - 1.0)
-    } else {
-        f64::NAN
-    };
+    let closed = excess_is_significant(&d.gap.before).then(|| (b - a) / (b - 1.0));
     let mut s = Score {
         closed,
         named_any: !d.effects.is_empty(),
@@ -117,12 +115,17 @@ pub fn score(d: &Diagnosis, expect: &Expect) -> Score {
             }
             if !s.named_ok {
                 // Not re-processed with the effect: a miss, counted by `named`, not by `closed`.
-                s.closed = f64::NAN;
+                s.closed = None;
             }
             for (e, x) in truth {
-                if let (Some(est), Some(sig)) = (d.estimate.get(e.name()), d.sigma.get(e.name())) {
-                    s.normalised_errors.push((est - x) / sig);
-                }
+                // A missing or non-finite estimate or sigma is a miss: an infinite normalised
+                // error, outside 2 sigma (left out of the std, counted as `missed`).
+                let z = match (d.estimate.get(e.name()), d.sigma.get(e.name())) {
+                    (Some(est), Some(sig)) => (est - x) / sig,
+                    _ => f64::INFINITY,
+                };
+                s.normalised_errors
+                    .push(if z.is_finite() { z } else { f64::INFINITY });
             }
         }
         Expect::Nothing => s.verdict_ok = d.verdict == Verdict::None,
@@ -130,9 +133,8 @@ pub fn score(d: &Diagnosis, expect: &Expect) -> Score {
             s.verdict_ok = d.verdict == Verdict::Unexplained && d.effects.is_empty();
             s.located_ok = d.located_in.first().map(String::as_str) == Some(*cov);
             s.closed = match &d.model_free {
-                Some(m) if s.closed.is_finite() => m.closed_fraction,
-                Some(_) => f64::NAN,
-                None => 0.0,
+                Some(m) => s.closed.map(|_| m.closed_fraction),
+                None => Some(0.0), // none applied: closes nothing, excess or not
             };
         }
     }
@@ -162,7 +164,8 @@ pub struct Row {
     pub within_2_sigma: f64,
     /// The normalised estimate errors `(estimate - truth) / sigma`.
     pub errors: Vec<f64>,
-    /// Standard deviation of the normalised estimate errors.
+    /// Standard deviation of the finite normalised estimate errors (a missed estimate is
+    /// infinite: outside 2 sigma, left out of the std).
     pub normalised_std: f64,
     /// Seeds with a significant held-out excess and the right answer (where "closed" is
     /// defined).
@@ -185,10 +188,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
                 Err(e) => {
                     // Counted as a failure of every rate, with the reason printed.
                     println!("  {} seed {seed}: error: {e}", case.label);
-                    return Score {
-                        closed: f64::NAN,
-                        ..Default::default()
-                    };
+                    return Score::default();
                 }
             };
             let s = score(&d, &case.expect);
@@ -212,8 +212,13 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
         .iter()
         .flat_map(|s| s.normalised_errors.clone())
         .collect();
-    let mut closed: Vec<f64> = scores.iter().map(|s| s.closed).collect();
-    closed.retain(|c| c.is_finite());
+    // Where a closure is defined, a non-finite one counts as closing nothing (-inf sorts
+    // first), not as a seed without an excess.
+    let closed: Vec<f64> = scores
+        .iter()
+        .filter_map(|s| s.closed)
+        .map(|c| if c.is_finite() { c } else { f64::NEG_INFINITY })
+        .collect();
     Row {
         label: case.label.clone(),
         seeds: scores.len(),
@@ -229,13 +234,19 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
     }
 }
 
-/// Sample standard deviation (NaN for fewer than two values).
+/// Sample standard deviation of the finite values (NaN for fewer than two).
 fn std(x: &[f64]) -> f64 {
+    let x: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();
     let mean = x.iter().sum::<f64>() / x.len() as f64;
     (x.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (x.len() as f64 - 1.0)).sqrt()
 }
 
-/// Share of normalised errors inside +-2 (NaN for none).
+/// Normalised errors that are not finite: missed estimates.
+fn missed(x: &[f64]) -> usize {
+    x.iter().filter(|e| !e.is_finite()).count()
+}
+
+/// Share of normalised errors inside +-2, a missed estimate outside (NaN for none).
 fn within_2_sigma(x: &[f64]) -> f64 {
     x.iter().filter(|e| e.abs() < 2.0).count() as f64 / x.len() as f64
 }
@@ -426,6 +437,20 @@ fn diagnosis_acceptance() {
         .unwrap_or(10);
     let only = std::env::var("KINESCAN_ACCEPT_CASES").unwrap_or_default();
     let pick = |c: &&Case| only.is_empty() || only.split(',').any(|o| c.label == o);
+    // A label that selects no case (a typo) fails, rather than running and asserting nothing.
+    let labels: Vec<String> = catalogue_cases()
+        .into_iter()
+        .chain(other_cases())
+        .map(|c| c.label)
+        .collect();
+    let unknown: Vec<&str> = only
+        .split(',')
+        .filter(|o| !o.is_empty() && !labels.iter().any(|l| l == o))
+        .collect();
+    assert!(
+        unknown.is_empty(),
+        "KINESCAN_ACCEPT_CASES names no case {unknown:?}; the cases are {labels:?}"
+    );
     let run = |cases: Vec<Case>| -> Vec<(Case, Row)> {
         cases
             .iter()
@@ -440,6 +465,7 @@ fn diagnosis_acceptance() {
         .chain(&other)
         .map(|(_, r)| r.clone())
         .collect();
+    assert!(!rows.is_empty(), "no case selected");
     print_table(&rows);
     let failures: Vec<String> = catalogue_failures(&catalogue)
         .into_iter()
@@ -466,15 +492,17 @@ fn catalogue_failures(rows: &[(Case, Row)]) -> Vec<String> {
     let errors: Vec<f64> = rows.iter().flat_map(|(_, r)| r.errors.clone()).collect();
     let (within, sd) = (within_2_sigma(&errors), std(&errors));
     println!(
-        "catalogue pooled: named {:.1}% of {n}, within 2 sigma {:.1}% and std {sd:.3} of {} estimates",
+        "catalogue pooled: named {:.1}% of {n}, within 2 sigma {:.1}% and std {sd:.3} of {} estimates ({} missed)",
         named * 100.0,
         within * 100.0,
-        errors.len()
+        errors.len(),
+        missed(&errors)
     );
-    if named < 0.95 {
+    // Rates compared NaN-proof (`short_of`): no diagnosis at all fails.
+    if short_of(named, 0.95) {
         out.push(format!("catalogue named first {:.1}% < 95%", named * 100.0));
     }
-    if within.is_nan() || within < 0.90 {
+    if short_of(within, 0.90) {
         out.push(format!(
             "catalogue within 2 sigma {:.1}% < 90%",
             within * 100.0
@@ -486,10 +514,10 @@ fn catalogue_failures(rows: &[(Case, Row)]) -> Vec<String> {
         ));
     }
     for (c, r) in rows {
-        if r.named < 0.8 {
+        if short_of(r.named, 0.8) {
             out.push(format!("{}: named {:.0}% < 80%", c.label, r.named * 100.0));
         }
-        if r.with_excess > 0 && r.closed_median < 0.8 {
+        if r.with_excess > 0 && short_of(r.closed_median, 0.8) {
             out.push(format!(
                 "{}: re-processing closes {:.0}% < 80% of the held-out excess (median of {})",
                 c.label,
@@ -503,7 +531,9 @@ fn catalogue_failures(rows: &[(Case, Row)]) -> Vec<String> {
 
 /// The thresholds of the other cases: no effect `none` in >= 95%; an effect outside the
 /// catalogue never named, `unexplained` and located in >= 90%, the model-free correction
-/// closing >= 50% (median); two effects both named in >= 80%.
+/// closing >= 50% (median); two effects both named in >= 80%. As counts over 10 seeds, with
+/// the chance a diagnosis right at the given rate fails them: `none` 10/10 (0.096 at 99%,
+/// the measured no-effect rate), 9/10 (0.004 at 99%), 8/10 (0.012 at 95%).
 fn other_failures(case: &Case, r: &Row) -> Vec<String> {
     let mut out = Vec::new();
     let mut check = |ok: bool, what: String| {

@@ -89,7 +89,7 @@ fn epsg_frames_match_pyproj() {
                 sigmas(&r_e_to_map_axes(&frame, &r.x_e)),
                 sigmas(&r.jacobian),
             );
-            let rel = (s_k - s_o).component_div(&s_o).abs().max();
+            let rel = crate::common::max_abs((s_k - s_o).component_div(&s_o).iter().copied());
             let w = worst_by_class.entry(r.class.as_str()).or_default();
             crate::common::raise_max(&mut w.0, err_m);
             crate::common::raise_max(&mut w.1, rel);

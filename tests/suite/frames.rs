@@ -220,7 +220,7 @@ proptest! {
         for f in [utm, MapFrame::Ecef, enu] {
             let j = f.r_enu_to_map_axes(&x);
             let fd = fd_jacobian(&f, &x);
-            prop_assert!((j - fd).abs().max() < 1e-8, "{f}: {j} vs {fd}");
+            prop_assert!(crate::common::max_abs((j - fd).iter().copied()) < 1e-8, "{f}: {j} vs {fd}");
         }
     }
 }

@@ -20,7 +20,7 @@ use kinescan::io::smrmsg::{SmrmsgFile, SMRMSG_RECORD_BYTES};
 use kinescan::sim::scenario::Scenario;
 use kinescan::sim::{self, SimOptions};
 use proptest::prelude::*;
-use proptest::test_runner::{Config, TestCaseError, TestRunner};
+use proptest::test_runner::{Config, FileFailurePersistence, TestCaseError, TestRunner};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::{Duration, Instant};
@@ -448,9 +448,14 @@ fn fuzz(parser: Parser, cases: u32) -> (u32, u64, f64) {
             "{parser:?} sample {k} refused: {r:?}"
         );
     }
+    // The seed: PROPTEST_RNG_SEED (CI fixes it), else a new one each run. A failing case is
+    // recorded in tests/suite/fuzz.proptest-regressions (path from the crate root, the test's
+    // working folder) and replayed first by every later run.
     let config = Config {
         cases,
-        failure_persistence: None,
+        failure_persistence: Some(Box::new(FileFailurePersistence::Direct(
+            "tests/suite/fuzz.proptest-regressions",
+        ))),
         max_shrink_iters: 2000,
         ..Config::default()
     };
@@ -492,7 +497,7 @@ fn fuzz_quick_every_parser() {
 
 /// The long run (docs/robustness.md): `PROPTEST_CASES` cases per parser (default 100,000).
 #[test]
-#[ignore = "long: cargo test --release --test suite -- --ignored fuzz"]
+#[ignore = "long (CI): PROPTEST_CASES=100000 cargo test --test suite -- --ignored fuzz_long; the test profile is optimised (opt-level 3), so no --release"]
 fn fuzz_long_every_parser() {
     let cases = std::env::var("PROPTEST_CASES")
         .ok()

@@ -78,7 +78,7 @@ fn oracle_covers_the_required_range() {
     assert!(rows.len() >= 30);
     assert!(rows.iter().any(|r| r.g.lat_rad < -1.39) && rows.iter().any(|r| r.g.lat_rad > 1.39));
     let h = rows.iter().map(|r| r.g.h_m);
-    assert!(h.clone().fold(f64::MAX, f64::min) <= -100.0 && crate::common::max_of(h) >= 9000.0);
+    assert!(crate::common::min_of(h.clone()) <= -100.0 && crate::common::max_of(h) >= 9000.0);
     let max_dlon_deg = rows
         .iter()
         .map(|r| match r.frame {
@@ -129,7 +129,10 @@ fn utm_forward_matches_pyproj() {
     );
     let from_ecef = |r: &Row| {
         let m = r.frame.ecef_to_map(&r.x_e);
-        (r.id, en_err(r, m).max((m.z - r.g.h_m).abs()))
+        (
+            r.id,
+            crate::common::max_of([en_err(r, m), (m.z - r.g.h_m).abs()]),
+        )
     };
     worst("ECEF->UTM", rows.iter().map(from_ecef), TOL_M);
 }

@@ -214,8 +214,10 @@ fn check_roundtrip(time: GpsTimeConvention, path: &Path) {
             );
         }
         for (k, v) in [q.x, q.y, q.z].into_iter().enumerate() {
-            lo[k] = lo[k].min(v);
-            hi[k] = hi[k].max(v);
+            // NaN-proof (min_of fails on NaN); the maximum as minus the minimum of negatives,
+            // as max_of's fold starts at 0.
+            lo[k] = crate::common::min_of([lo[k], v]);
+            hi[k] = -crate::common::min_of([-hi[k], -v]);
         }
         // Adding an exact integer shift rounds once: exact to f64 resolution at 4.5e8 s.
         assert_eq!(q.gps_time.unwrap(), p.gps_time + shift);

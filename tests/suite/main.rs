@@ -24,6 +24,7 @@ mod geodesy;
 mod geodesy_local;
 mod geoid;
 mod geoid_pipeline;
+mod georef_forward;
 mod io_atomic;
 mod io_bad_input;
 mod io_info;

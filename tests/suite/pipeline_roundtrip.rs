@@ -2,6 +2,9 @@
 //! points, poses and parameters are georeferenced back by `kinescan run` to <= 0.1 mm, for all
 //! headings, roll/pitch to +-30 deg, non-identity boresight and lever arm, non-zero latency
 //! and alpha. Also: read = written + rejected, 1 vs N threads byte-identical, splitting.
+//! The known points are built with the pipeline's own pose cursor and beam code, so a sign or
+//! term wrong in both cancels here (an attitude latency applied at `t - tau` passes this test);
+//! `georef_forward.rs` is the outside check of the whole equation.
 
 use crate::common;
 

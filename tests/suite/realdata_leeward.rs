@@ -37,9 +37,10 @@ fn leeward_ranges_from_interpolated_sbet() {
         "point 0 range {}",
         ranges[0]
     );
-    let (lo, hi) = ranges
-        .iter()
-        .fold((f64::MAX, f64::MIN), |(a, b), r| (a.min(*r), b.max(*r)));
+    let (lo, hi) = (
+        crate::common::min_of(ranges.iter().copied()),
+        crate::common::max_of(ranges.iter().copied()),
+    );
     // The issue quotes 4454-5346 m, whole metres: the true extremes (4453.517 and 5345.374 m,
     // reproduced independently by plain geodetic interpolation in Python) round into it, so the
     // bound is the quoted interval widened by the half metre of its rounding.

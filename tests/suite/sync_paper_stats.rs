@@ -76,7 +76,7 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
             let mean = sum / sg.returns.len() as f64;
             let mut sc_ = s.traj.sigma_cursor().unwrap();
             let sig = sc_.at(sg.crossing_time_s).unwrap();
-            let horiz = sig.pos_ned_m.x.max(sig.pos_ned_m.y);
+            let horiz = crate::common::max_of([sig.pos_ned_m.x, sig.pos_ned_m.y]);
             let bound = 2.0 * (horiz * horiz + tg.sigma_m * tg.sigma_m).sqrt();
             total += 1;
             within += (mean.abs() <= bound) as usize;
@@ -86,7 +86,7 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     let crb_s1 = (crb1.iter().sum::<f64>() / crb1.len() as f64).sqrt();
     eprintln!(
         "paper: t0 err rms {:.3e} s (pred {:.3e}), T err rms {:.3e} s (pred {:.3e}), max |T err| {:.3e}",
-        rms(&pe0), rms(&ps0), rms(&pe1), rms(&ps1), pe1.iter().fold(0.0f64, |a, b| a.max(b.abs()))
+        rms(&pe0), rms(&ps0), rms(&pe1), rms(&ps1), crate::common::max_abs(pe1.iter().copied())
     );
     eprintln!(
         "refined: t0 err std {:.3e} (pred {:.3e}, CRB {:.3e}), T err std {:.3e} (pred {:.3e}, CRB {:.3e})",
@@ -98,8 +98,16 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     );
     // Paper's class: the paper's period differed from the laboratory's by 2e-6 s.
     assert!(rms(&pe1) < 2e-6, "paper T error rms {:.3e}", rms(&pe1));
-    // Its predicted sigma (uniform profile quantisation + navigation) is honest within 2x.
-    assert!(rms(&pe1) < 2.0 * rms(&ps1) && rms(&pe0) < 2.0 * rms(&ps0));
+    // Its predicted sigma (uniform profile quantisation + navigation) is honest within 2x both
+    // ways (error rms / predicted: measured 1.19 for t0, 1.03 for T); one-sided, a sigma 100x
+    // too large would pass.
+    for (err, pred) in [(rms(&pe0), rms(&ps0)), (rms(&pe1), rms(&ps1))] {
+        let ratio = err / pred;
+        assert!(
+            (0.5..=2.0).contains(&ratio),
+            "error rms / predicted sigma {ratio}"
+        );
+    }
     // Refined at least 5x more precise than the paper's method on the same data.
     assert!(rms(&pe0) / rms(&re0) >= 5.0 && rms(&pe1) / rms(&re1) >= 5.0);
     // Empirical std within 25% of the Cramer-Rao bound (2.5 sampling sigmas, see SEEDS).
@@ -112,7 +120,12 @@ fn paper_and_refined_estimators_at_the_paper_geometry() {
     for z in [std(&z0), std(&z1)] {
         assert!((0.8..=1.25).contains(&z), "normalised error std {z:.3}");
     }
-    // 2 sigma holds for 95.4% of Gaussian samples; 90% leaves 4 binomial sigmas at n = 400.
+    // Every plate passage of every seed is a sighting: 4 plates x 2 passes x SEEDS = 400
+    // (measured 400); at least 380 (a sighting rejected now and then), so the rate below is
+    // not one of nothing.
+    assert!(total >= 380, "{total} accepted sightings of 400");
+    // 2 sigma holds for 95.45% of Gaussian samples: >= 90% is >= 360 of 400, failed by an
+    // honest sigma with probability 1.5e-6 (binomial); measured 384/400.
     assert!(
         within as f64 >= 0.9 * total as f64,
         "{within}/{total} within 2 sigma"

@@ -45,7 +45,7 @@ fn random_geometry(rng: &mut ChaCha8Rng) -> PointGeometry {
 /// 0.01 (rad, s or m): truncation ~h^4/30 relative for the rotations (3e-10) and ECEF rounding
 /// (1e-9 m over steps of >= 1 mm of motion) stay far below 1e-6.
 fn fd_column(g: &PointGeometry, k: usize, scale: f64) -> Vector3<f64> {
-    let h = (0.1 / scale.max(1e-3)).min(0.01);
+    let h = crate::common::min_of([0.1 / crate::common::max_of([scale, 1e-3]), 0.01]);
     let at = |x: f64| {
         let mut e = [0.0; N_INPUTS];
         e[k] = x;
@@ -113,7 +113,7 @@ proptest! {
             dt_dclock,
         );
         let total = want.var_m2.sum();
-        prop_assert!((fast.var_m2 - want.var_m2).abs().max() <= 1e-12 * total,
+        prop_assert!(crate::common::max_abs((fast.var_m2 - want.var_m2).iter().copied()) <= 1e-12 * total,
             "fast {:?} reference {:?}", fast.var_m2, want.var_m2);
         for (a, b) in fast.group_variance_m2.iter().zip(&want.group_variance_m2) {
             prop_assert!((a - b).abs() <= 1e-12 * total, "groups fast {a} reference {b}");
@@ -189,7 +189,7 @@ fn linear_sigma_matches_monte_carlo() {
         let var_mc = sq / n - (sum / n).component_mul(&(sum / n));
         for k in 0..3 {
             let ratio = (var_mc[k] / lin[(k, k)]).sqrt();
-            worst = worst.max((ratio - 1.0).abs());
+            crate::common::raise_max(&mut worst, (ratio - 1.0).abs());
             assert!(
                 (ratio - 1.0).abs() <= 0.02,
                 "case {case} axis {k}: MC/linear sigma {ratio}"

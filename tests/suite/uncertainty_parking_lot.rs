@@ -54,7 +54,7 @@ fn assert_additive(r: &SensitivityReport) {
         let (mut sum, mut conf_sq) = (0.0, 0.0);
         for f in &p.factors {
             for (s, linear) in f.sobol.iter().zip(f.linear_share) {
-                let tol = s.first_conf.max(s.total_conf) + 0.02;
+                let tol = crate::common::max_of([s.first_conf, s.total_conf]) + 0.02;
                 for est in [s.first, s.total] {
                     assert!(
                         (est - linear).abs() <= tol,

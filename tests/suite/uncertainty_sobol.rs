@@ -27,9 +27,12 @@ fn indices_match_an_analytic_model_with_interaction() {
             (s.combined[f].first, first[f]),
             (s.combined[f].total, total[f]),
         ] {
-            let conf = s.combined[f].first_conf.max(s.combined[f].total_conf);
+            let conf = crate::common::max_of([s.combined[f].first_conf, s.combined[f].total_conf]);
             println!("factor {f}: {est:.4} vs {truth:.4} (+-{conf:.4})");
-            assert!((est - truth).abs() <= (3.0 * conf).min(0.02), "factor {f}");
+            assert!(
+                (est - truth).abs() <= crate::common::min_of([3.0 * conf, 0.02]),
+                "factor {f}"
+            );
         }
     }
     // The 3-vector output is one output scaled: the combined index equals each component's.
@@ -89,7 +92,7 @@ fn study_tables_and_additivity() {
         for f in &p.factors {
             for (s, linear) in f.sobol.iter().zip(f.linear_share) {
                 for est in [s.first, s.total] {
-                    let tol = s.first_conf.max(s.total_conf) + 0.01;
+                    let tol = crate::common::max_of([s.first_conf, s.total_conf]) + 0.01;
                     assert!(
                         (est - linear).abs() <= tol,
                         "{} at {} m: {est} vs linear {linear}",

@@ -116,8 +116,8 @@ pub fn r_n_to_e_origin() -> nalgebra::Matrix3<f64> {
 pub const FULL_TURN: f64 = TAU;
 
 /// The shared real-data folder: `$KINESCAN_REALDATA`, else `../shared/realdata` beside the
-/// crate. When absent: a test failure if `KINESCAN_REQUIRE_REALDATA=1` (CI sets it, so the
-/// real-data tests cannot pass unseen), else `None` after printing `SKIPPED <test>`.
+/// crate. When absent, `None` after a skip of `test` that `KINESCAN_REQUIRE_REALDATA=1` (CI
+/// sets it) makes a failure (`kinescan::testing::skip`).
 pub fn realdata(test: &str) -> Option<PathBuf> {
     let candidates = [
         std::env::var_os("KINESCAN_REALDATA").map(PathBuf::from),
@@ -128,30 +128,18 @@ pub fn realdata(test: &str) -> Option<PathBuf> {
         .flatten()
         .find(|p| p.join("PROVENANCE.md").exists());
     if found.is_none() {
-        let required = std::env::var("KINESCAN_REQUIRE_REALDATA").is_ok_and(|v| v == "1");
-        assert!(
-            !required,
-            "{test}: ../shared/realdata not found and KINESCAN_REQUIRE_REALDATA=1"
+        kinescan::testing::skip(
+            "KINESCAN_REQUIRE_REALDATA",
+            test,
+            "../shared/realdata not found (set KINESCAN_REALDATA)",
         );
-        eprintln!("SKIPPED {test}: ../shared/realdata not found (set KINESCAN_REALDATA)");
     }
     found
 }
 
-/// The largest of `values` (0 for none), failing on NaN: `f64::max` drops a NaN, so an error
-/// that came out NaN would pass a bound checked against `fold(0.0, f64::max)`.
-pub fn max_of(values: impl IntoIterator<Item = f64>) -> f64 {
-    values.into_iter().fold(0.0, |acc, v| {
-        assert!(!v.is_nan(), "NaN among the values of a maximum");
-        acc.max(v)
-    })
-}
-
-/// `*acc = max(*acc, v)`, failing on NaN (see [`max_of`]).
-pub fn raise_max(acc: &mut f64, v: f64) {
-    assert!(!v.is_nan(), "NaN among the values of a maximum");
-    *acc = acc.max(v);
-}
+/// NaN-proof maxima (`f64::max` drops a NaN, so an error that came out NaN would pass a bound
+/// checked against `fold(0.0, f64::max)`; clippy.toml refuses it in tests).
+pub use kinescan::testing::{max_abs, max_of, min_of, raise_max};
 
 /// The OGC WKT CRS record (VLR 2112) of the LAS file `path`.
 pub fn las_wkt(path: &Path) -> String {
@@ -245,8 +233,9 @@ impl Drop for Tmpfs<'_> {
     }
 }
 
-/// Mounts a tmpfs of `size_kib` KiB on the existing folder `dir`; None (with the reason
-/// printed as a skip of `test`) where the test cannot mount one.
+/// Mounts a tmpfs of `size_kib` KiB on the existing folder `dir`; None where the test cannot
+/// mount one (not root, no `mount`): a skip of `test` that `KINESCAN_REQUIRE_TMPFS=1` (CI sets
+/// it) makes a failure (`kinescan::testing::skip`).
 #[cfg(target_os = "linux")]
 pub fn mount_tmpfs<'a>(dir: &'a Path, size_kib: u64, test: &str) -> Option<Tmpfs<'a>> {
     let mounted = std::process::Command::new("mount")
@@ -256,7 +245,8 @@ pub fn mount_tmpfs<'a>(dir: &'a Path, size_kib: u64, test: &str) -> Option<Tmpfs
     match mounted {
         Ok(o) if o.status.success() => Some(Tmpfs(dir)),
         other => {
-            eprintln!("SKIPPED {test}: cannot mount a tmpfs ({other:?})");
+            let reason = format!("cannot mount a tmpfs ({other:?})");
+            kinescan::testing::skip("KINESCAN_REQUIRE_TMPFS", test, &reason);
             None
         }
     }
@@ -301,11 +291,19 @@ pub fn kinescan(dir: &Path, args: &[&str]) -> std::process::Output {
         .unwrap()
 }
 
-/// Extra dimension names and per-point f32 values of a LAS file.
+/// Extra dimension names and per-point f32 values of a LAS file (see [`read_extra_f64`]).
 pub fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
+    let (names, values) = read_extra_f64(path);
+    let narrow = |row: Vec<f64>| row.into_iter().map(|v| v as f32).collect();
+    (names, values.into_iter().map(narrow).collect())
+}
+
+/// Extra dimension names and per-point values of a LAS file: float32 (data_type 9) and float64
+/// (10) as stored, a scaled fraction byte (1) times its scale.
+pub fn read_extra_f64(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
     let mut reader = las::Reader::from_path(path).unwrap();
-    // (name, size): float32 (data_type 9) or a scaled fraction byte (data_type 1).
-    let dims: Vec<(String, usize)> = reader
+    // (name, data_type).
+    let dims: Vec<(String, u8)> = reader
         .header()
         .all_vlrs()
         .find(|v| v.user_id == "LASF_Spec" && v.record_id == 4)
@@ -314,13 +312,7 @@ pub fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
                 .chunks(192)
                 .map(|d| {
                     let name = String::from_utf8_lossy(&d[4..36]);
-                    let name = name.trim_end_matches('\0');
-                    let size = match d[2] {
-                        1 => 1,
-                        9 => 4,
-                        t => panic!("data_type {t}"),
-                    };
-                    (name.to_string(), size)
+                    (name.trim_end_matches('\0').to_string(), d[2])
                 })
                 .collect()
         })
@@ -333,13 +325,16 @@ pub fn read_extra(path: &Path) -> (Vec<String>, Vec<Vec<f32>>) {
             let bytes = p.unwrap().extra_bytes;
             let mut at = 0;
             dims.iter()
-                .map(|(_, size)| {
-                    let b = &bytes[at..at + size];
+                .map(|(_, data_type)| {
+                    let b = &bytes[at..];
+                    let (v, size) = match data_type {
+                        1 => (f64::from(b[0]) * kinescan::io::las::FRACTION_SCALE, 1),
+                        9 => (f64::from(f32::from_le_bytes(b[..4].try_into().unwrap())), 4),
+                        10 => (f64::from_le_bytes(b[..8].try_into().unwrap()), 8),
+                        t => panic!("data_type {t}"),
+                    };
                     at += size;
-                    match size {
-                        1 => (f64::from(b[0]) * kinescan::io::las::FRACTION_SCALE) as f32,
-                        _ => f32::from_le_bytes(b.try_into().unwrap()),
-                    }
+                    v
                 })
                 .collect()
         })
