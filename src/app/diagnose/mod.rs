@@ -252,6 +252,7 @@ fn write_outputs(
             .map(|(e, d)| (e.name().to_string(), *d))
             .collect(),
         nuisance: learned.nuisance,
+        rates: observed.rates,
         foreign: learned.screening,
         counts: observed.counts,
         plots: plot_files,

@@ -170,6 +170,9 @@ pub struct Diagnosis {
     /// The navigation error model the statistics used and how it was obtained
     /// (docs/diagnosis.md, "The nuisance").
     pub nuisance: crate::app::diagnose::nuisance::Nuisance,
+    /// Extra: the SBET's body-rate fields against the rates of its own attitude, and which the
+    /// signatures used (`sbet_fields`, or `trajectory` when the fields are empty or disagree).
+    pub rates: crate::trajectory::RateCheck,
     /// Extra: returns set aside as foreign to their reference, by reference
     /// (docs/diagnosis.md, "Foreign returns").
     pub foreign: crate::app::diagnose::screen::Screening,
@@ -402,6 +405,20 @@ No catalogue effect is named; each would \
             self.split.held_out.len()
         );
         self.write_foreign(&mut s);
+        let r = &self.rates;
+        let _ = writeln!(
+            s,
+            "\nBody rates and velocities for the timing signatures: {} (SBET rate fields rms \
+             {:.3} deg/s, rates of its attitude {:.3} deg/s, difference {:.3} deg/s).",
+            match r.source {
+                crate::trajectory::MotionSource::SbetFields => "the SBET's own fields",
+                crate::trajectory::MotionSource::Trajectory =>
+                    "derived from the trajectory's attitude and position (the SBET fields are empty or disagree)",
+            },
+            r.fields_rms_radps.to_degrees(),
+            r.derived_rms_radps.to_degrees(),
+            r.difference_rms_radps.to_degrees()
+        );
         if c.control_points_read > 0 {
             let _ = writeln!(
                 s,
