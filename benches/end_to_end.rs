@@ -14,7 +14,8 @@
 //! `cargo bench --bench end_to_end` (2e7 returns, 3 repetitions); `KINESCAN_BENCH_RETURNS`,
 //! `KINESCAN_BENCH_REPS` to change them (0: write the survey only); `KINESCAN_BENCH_DIR=DIR`
 //! to keep the generated survey for profiling; `KINESCAN_BENCH_CASE=laz` for the LAZ case
-//! alone, `KINESCAN_BENCH_CASE=day` for `kinescan day` against `kinescan run` ([`day_case`]).
+//! alone, `KINESCAN_BENCH_CASE=day` for `kinescan day` against `kinescan run` ([`day_case`]),
+//! `KINESCAN_BENCH_CASE=tpu` for `kinescan tpu` on the cloud `run` wrote ([`tpu_case`]).
 //! See docs/performance.md.
 #![allow(clippy::disallowed_methods)] // clippy.toml's NaN rule is for tests/suite
 
@@ -241,6 +242,9 @@ fn main() {
     if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "day") {
         return day_case(dir, reps);
     }
+    if std::env::var("KINESCAN_BENCH_CASE").is_ok_and(|c| c == "tpu") {
+        return tpu_case(dir, reps);
+    }
     // The floor writes as many bytes as the run without uncertainty (the 3.0x criterion's run).
     run_once(dir, "pipeline.toml", 2);
     let las_bytes = std::fs::metadata(dir.join("out/cloud.las")).unwrap().len();
@@ -421,4 +425,48 @@ fn day_case(dir: &Path, reps: usize) {
         median(steps[2].clone()),
         fmt_ratio(ratio_stats(&day_s, &run_s))
     );
+}
+
+/// `kinescan tpu` beside `kinescan run` on the same points (docs/tpu.md): the run with the
+/// default uncertainty fields writes the cloud once; then, alternated, that run again and
+/// `tpu` on its cloud with the same pipeline (default fields), 2 threads: points/s over the
+/// per-point stage (`returns_per_second`, `points_per_second` of the reports), whole wall
+/// time, peak RSS.
+fn tpu_case(dir: &Path, reps: usize) {
+    run_once(dir, "uncertainty.toml", 2);
+    std::fs::rename(dir.join("out/cloud.las"), dir.join("base.las")).unwrap();
+    let tpu_once = || {
+        let _ = std::fs::remove_file(dir.join("out/tpu.las"));
+        let started = std::time::Instant::now();
+        let status = Command::new(env!("CARGO_BIN_EXE_kinescan"))
+            .args(["--quiet", "tpu", "uncertainty.toml", "--cloud", "base.las"])
+            .args(["--set", "output.las=\"out/tpu.las\"", "--threads", "2"])
+            .current_dir(dir)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let wall = started.elapsed().as_secs_f64();
+        let report = std::fs::read(dir.join("out/tpu.report.json")).unwrap();
+        let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
+        let pps = report["points_per_second"].as_f64().unwrap();
+        let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
+        (pps, wall, rss)
+    };
+    let (mut run, mut tpu) = (Vec::new(), Vec::new());
+    for _ in 0..reps {
+        run.push(run_once(dir, "uncertainty.toml", 2));
+        tpu.push(tpu_once());
+    }
+    let col =
+        |v: &[(f64, f64, f64)], k: usize| median(v.iter().map(|r| [r.0, r.1, r.2][k]).collect());
+    println!("| command (2 threads, default fields) | M points/s | wall s | peak RSS MB |");
+    println!("|---|---|---|---|");
+    for (name, v) in [("run", &run), ("tpu", &tpu)] {
+        println!(
+            "| {name} | {:.2} | {:.2} | {:.0} |",
+            col(v, 0) / 1e6,
+            col(v, 1),
+            col(v, 2)
+        );
+    }
 }

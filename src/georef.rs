@@ -206,6 +206,23 @@ impl ReturnTerms {
         beam_of_trig(self.sin_cos_alpha, self.sin_cos_beta)
     }
 
+    /// The LAS 1.4 scan angle (rad, in (-pi, pi]): the beam's rotation from nadir about the
+    /// vehicle's horizontal along-track axis, i.e. the angle in the vertical cross-track plane
+    /// between the downward vertical and the beam's projection, positive to the right looking
+    /// forward (counter-clockwise seen from behind), as LAS 1.4 R15 defines it for the
+    /// `Scan Angle` field ("relative to the vertical of the data's coordinate system"). The
+    /// beam is `R_s^b x_s` (= `a_b - l_b`, `lever_arm_b_m` the lever arm of these terms).
+    #[inline]
+    pub fn scan_angle_rad(&self, lever_arm_b_m: &Vector3<f64>) -> f64 {
+        let beam_n = self.r_b_to_n * (self.a_b_m - lever_arm_b_m);
+        // Body x (forward) in the local level (north, east, down), made horizontal.
+        let (fwd_n, fwd_e) = (self.r_b_to_n[(0, 0)], self.r_b_to_n[(1, 0)]);
+        let h = fwd_n.hypot(fwd_e).max(f64::MIN_POSITIVE);
+        // Right of the horizontal forward direction: (-east, north) / h.
+        let across = (beam_n.y * fwd_n - beam_n.x * fwd_e) / h;
+        across.atan2(beam_n.z)
+    }
+
     /// ECEF point (m) for the IMU at `r_e_m` (conventions §4).
     #[inline]
     pub fn point_e(&self, r_e_m: &Vector3<f64>) -> Vector3<f64> {

@@ -49,6 +49,7 @@ pub mod calib;
 mod error;
 pub mod geo;
 pub mod georef;
+pub mod ins;
 pub mod interrupt;
 pub mod io;
 pub mod pipeline;

@@ -5,7 +5,8 @@ to a screenshot.
     python3 tests/day_report_check.py DAY_OUT SCREENSHOT.png
 
 Checks: the HTML holds the key numbers of day.report.json (every pass's name and points
-written, the day's totals, every sigma_z median in mm as printed); the screenshot is not blank
+written, the day's totals, every pass's sigma_z median in mm as printed, the CRS; the tiles'
+sigma rows when at most 8 tiles, else their summary row "N tiles"); the screenshot is not blank
 (dark text on most of the page's rows) and shows the embedded plot (coloured markers: pixels
 that are neither grey nor white). What this proves: the page is self-contained and renders with
 its tables and its plot in Chromium; it does not read the numbers back from the pixels.
@@ -29,7 +30,13 @@ def main():
     wanted = [str(report["totals"]["written"]), str(report["totals"]["read"])]
     for p in report["passes"]:
         wanted += [p["name"], str(p["counts"]["written"])]
-    wanted += [f"{s['sigma_z_median_m'] * 1e3:.1f}" for s in report["sigma"]]
+    passes = [s for s in report["sigma"] if s["scope"].startswith("pass ")]
+    tiles = [s for s in report["sigma"] if not s["scope"].startswith("pass ")]
+    listed = passes + tiles if len(tiles) <= 8 else passes
+    wanted += [f"{s['sigma_z_median_m'] * 1e3:.1f}" for s in listed]
+    wanted.append(report["crs"])
+    if len(tiles) > 8:
+        wanted.append(f"{len(tiles)} tiles (range over tiles)")
     problems += [f"report.html lacks {w}" for w in wanted if f">{w}<" not in html]
     if "data:image/png;base64," not in html or "src=\"http" in html:
         problems.append("the plot is not embedded (or the page loads something)")

@@ -65,7 +65,7 @@ impl ExtraOffsets {
 
 /// Simulates the city block into `out/survey`, runs `out/pipeline.toml` on it and compares.
 pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Result<DemoSummary> {
-    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    claim_folder(out)?;
     let scenario = out.join("scenario_city_block.toml");
     write_atomic(&scenario, SCENARIO.as_bytes())?;
     let started = Instant::now();
@@ -98,6 +98,38 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
         error_h_v_rms_m: rms_h_v(&errors),
         normalised_rms_xyz: normalised,
     })
+}
+
+/// The file that marks a folder as the demo's (written when the demo makes it).
+pub const MARKER: &str = ".kinescan-demo";
+
+/// Makes `out` the demo's folder: a new or empty folder gets the [`MARKER`]; a folder that
+/// holds anything else without it (a project's `pipeline.toml`, `survey/`...) is refused, as
+/// the demo would replace those files.
+fn claim_folder(out: &Path) -> Result<()> {
+    let mut entries: Vec<String> = match std::fs::read_dir(out) {
+        Ok(entries) => entries
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect(),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+        Err(e) => return Err(Error::io(out, e)),
+    };
+    if !entries.is_empty() && !entries.iter().any(|e| e == MARKER) {
+        entries.sort();
+        entries.truncate(5);
+        return Err(Error::bad_file(
+            out,
+            format!(
+                "not empty ({}...) and not made by `kinescan demo` (no {MARKER} in it): the \
+                 demo writes pipeline.toml, scenario_city_block.toml, survey/ and its outputs \
+                 there and would replace such files; give `--out` a new or empty folder",
+                entries.join(", ")
+            ),
+        ));
+    }
+    std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
+    write_atomic(&out.join(MARKER), b"made by kinescan demo\n")
 }
 
 /// Map-frame error vectors of every LAS point against the truth of its raw return (found

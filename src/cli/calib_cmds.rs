@@ -14,13 +14,15 @@ pub struct CalibrateArgs {
 
 #[derive(Subcommand)]
 enum CalibrateCommand {
-    /// Latency from sphere scans on a table turning at +-omega (paper 000).
+    /// Latency from sphere scans on a table turning at +-omega (docs/calibration.md, "Latency:
+    /// lab guide").
     #[command(after_help = "Examples:
   kinescan calibrate latency pipelines/calib_latency.toml --out work/latency
   kinescan calibrate simulate-table pipelines/calib_sim_table.toml --out work/table && \\
     kinescan calibrate latency work/table/calib_latency.toml --out work/latency")]
     Latency(Job),
-    /// Boresight from static scans of a tripod at three or more sites (paper 002).
+    /// Boresight from static scans of a tripod at three or more sites (docs/calibration.md,
+    /// "Boresight: lab guide").
     #[command(after_help = "Examples:
   kinescan calibrate boresight pipelines/calib_boresight.toml --out work/boresight
   kinescan calibrate simulate-tripod pipelines/calib_sim_tripod.toml --out work/tripod")]

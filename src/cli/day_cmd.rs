@@ -60,6 +60,20 @@ pub fn day(a: &DayArgs, quiet: bool) -> Result<()> {
         for o in &r.outputs {
             println!("wrote {} ({} points)", o.path.display(), o.points);
         }
+        for d in &r.diagnosis {
+            println!(
+                "diagnosis of {}: {} ({})",
+                d.pass,
+                d.verdict,
+                d.folder.join("summary.md").display()
+            );
+        }
+        let out = &r.out_dir;
+        println!(
+            "morning report {} ({})",
+            out.join("report.md").display(),
+            out.join("report.html").display()
+        );
     }
     Ok(())
 }

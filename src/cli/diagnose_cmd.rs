@@ -45,6 +45,14 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
             a.pipeline.display()
         );
     };
+    if req.out_dir.exists() && !req.out_dir.is_dir() {
+        bail!(
+            "--out {}: is a file, not a folder: the diagnosis writes a folder of files \
+             (diagnosis.json, summary.md, plots); give a new or existing folder",
+            req.out_dir.display()
+        );
+    }
+    crate::cli::remove_stale_temps(&req.out_dir)?;
     let started = std::time::Instant::now();
     let d = diagnose::run(&loaded, &req)?;
     if !quiet {

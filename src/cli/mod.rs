@@ -7,6 +7,8 @@ mod diagnose_cmd;
 mod pipeline_cmds;
 mod sensitivity_cmd;
 mod sim_cmds;
+mod tpu_cmd;
+mod trajectory_cmd;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -34,6 +36,8 @@ enum Command {
     Sensitivity(sensitivity_cmd::SensitivityArgs),
     Diagnose(diagnose_cmd::DiagnoseArgs),
     Day(day_cmd::DayArgs),
+    Trajectory(trajectory_cmd::TrajectoryArgs),
+    Tpu(tpu_cmd::TpuArgs),
 }
 
 /// Exit code of a command stopped by SIGINT or SIGTERM (128 + SIGINT, the shell's convention).
@@ -83,14 +87,27 @@ pub(crate) fn remove_stale_temps(dir: &std::path::Path) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// `--threads N`: a whole number >= 1.
+/// `--threads N`: a whole number >= 1; above [`MAX_THREADS_PER_CPU`] times the machine's
+/// CPUs it is clamped there, with a warning (more threads only cost memory and switches).
 pub(crate) fn threads(s: &str) -> Result<usize, String> {
+    let cpus = std::thread::available_parallelism().map_or(1, |n| n.get());
     match s.parse::<usize>() {
         Ok(0) => Err("must be at least 1 (omit it to use every core)".into()),
+        Ok(n) if n > MAX_THREADS_PER_CPU * cpus => {
+            let max = MAX_THREADS_PER_CPU * cpus;
+            eprintln!(
+                "warning: --threads {n} is more than {MAX_THREADS_PER_CPU} times this machine's \
+                 {cpus} CPUs: using {max} threads"
+            );
+            Ok(max)
+        }
         Ok(n) => Ok(n),
         Err(e) => Err(format!("`{s}` is not a whole number: {e}")),
     }
 }
+
+/// The most threads per CPU `--threads` starts.
+const MAX_THREADS_PER_CPU: usize = 4;
 
 /// Parses the command line, runs the command, maps errors to a message and exit code 1.
 pub fn run() -> ExitCode {
@@ -107,6 +124,8 @@ pub fn run() -> ExitCode {
         Command::Sensitivity(a) => sensitivity_cmd::sensitivity(a, cli.quiet),
         Command::Diagnose(a) => diagnose_cmd::diagnose(a, cli.quiet),
         Command::Day(a) => day_cmd::day(a, cli.quiet),
+        Command::Trajectory(a) => trajectory_cmd::trajectory(a, cli.quiet),
+        Command::Tpu(a) => tpu_cmd::tpu(a, cli.quiet),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

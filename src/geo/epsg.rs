@@ -26,12 +26,13 @@ use nalgebra::{Matrix3, Vector3};
 use proj4rs::Proj;
 
 use super::ellipsoid::{ecef_to_geodetic, geodetic_to_ecef, r_enu_to_e, Geodetic};
+use super::epsg_axes::{NORTH_EAST, OTHER_AXES};
 
 /// A projected CRS resolved from its EPSG code, with its exact forward and inverse projection.
 pub struct EpsgCrs {
     code: u32,
     name: String,
-    wkt: &'static str,
+    wkt: String,
     proj4: String,
     proj: Proj,
     wgs84: Proj,
@@ -99,7 +100,7 @@ impl EpsgCrs {
         let crs = EpsgCrs {
             code,
             name,
-            wkt: def.wkt,
+            wkt: identifying_wkt(code, def.wkt),
             proj4,
             proj,
             wgs84,
@@ -126,9 +127,9 @@ impl EpsgCrs {
         &self.name
     }
 
-    /// OGC WKT1 of the CRS, as PROJ exports it (with `AUTHORITY["EPSG",code]`).
-    pub fn wkt(&self) -> &'static str {
-        self.wkt
+    /// OGC WKT1 of the CRS that PROJ identifies as its EPSG code (see [`identifying_wkt`]).
+    pub fn wkt(&self) -> &str {
+        &self.wkt
     }
 
     /// The PROJ.4 definition used for the maths.
@@ -194,6 +195,56 @@ impl EpsgCrs {
     pub fn map_to_ecef(&self, x_m: &Vector3<f64>) -> Vector3<f64> {
         geodetic_to_ecef(self.map_to_geodetic(x_m))
     }
+}
+
+/// The table's WKT1 made to identify as EPSG `code` in PROJ (`CRS.from_wkt(w).to_epsg()`,
+/// checked by pyproj in CI over every code of docs/output.md): without `TOWGS84` nodes (with
+/// one, PROJ reads a bound CRS, the CRS *plus* a transformation, which has no EPSG code; the
+/// Helmert kinescan applied is documented, and a GIS tool picks its own transformation from
+/// the EPSG code), and with the axis order of the EPSG definition (`epsg_axes`, generated from
+/// PROJ's database): northing first where EPSG says so, no `AXIS` for polar axes. The LAS
+/// coordinates stay easting, northing (traditional GIS order).
+fn identifying_wkt(code: u32, table_wkt: &str) -> String {
+    let mut wkt = strip_nodes(table_wkt, ",TOWGS84[");
+    let north_east = u16::try_from(code).is_ok_and(|c| NORTH_EAST.binary_search(&c).is_ok());
+    let other = u16::try_from(code).is_ok_and(|c| OTHER_AXES.binary_search(&c).is_ok());
+    if north_east || other {
+        wkt = strip_nodes(&wkt, ",AXIS[");
+        if north_east {
+            let authority = format!(",AUTHORITY[\"EPSG\",\"{code}\"]]");
+            if let Some(at) = wkt.rfind(&authority) {
+                wkt.insert_str(at, r#",AXIS["Northing",NORTH],AXIS["Easting",EAST]"#);
+            }
+        }
+    }
+    wkt
+}
+
+/// `wkt` without every node that starts with `start` (e.g. `,TOWGS84[`), brackets balanced.
+fn strip_nodes(wkt: &str, start: &str) -> String {
+    let mut out = String::with_capacity(wkt.len());
+    let mut rest = wkt;
+    while let Some(at) = rest.find(start) {
+        out.push_str(&rest[..at]);
+        let mut depth = 0usize;
+        let mut end = rest.len();
+        for (i, ch) in rest[at..].char_indices() {
+            match ch {
+                '[' => depth += 1,
+                ']' => {
+                    depth -= 1;
+                    if depth == 0 {
+                        end = at + i + 1;
+                        break;
+                    }
+                }
+                _ => {}
+            }
+        }
+        rest = &rest[end..];
+    }
+    out.push_str(rest);
+    out
 }
 
 /// The name in `PROJCS["name",...` of a WKT1.
@@ -276,9 +327,34 @@ mod tests {
         let crs = EpsgCrs::get(2154).unwrap();
         assert_eq!(crs.name(), "RGF93 / Lambert-93");
         assert!(crs.wkt().contains("AUTHORITY[\"EPSG\",\"2154\"]"));
+        assert!(!crs.wkt().contains("TOWGS84"), "{}", crs.wkt());
         assert!(std::ptr::eq(crs, EpsgCrs::get(2154).unwrap()));
         let ft = EpsgCrs::get(2263).unwrap();
         assert!((ft.metres_per_unit() - 1200.0 / 3937.0).abs() < 1e-15);
+    }
+
+    /// The WKT loses its `TOWGS84` (nested brackets and all) and gets the EPSG axis order.
+    #[test]
+    fn identifying_wkt_strips_helmert_and_orders_axes() {
+        let ne = EpsgCrs::get(3035).unwrap().wkt();
+        assert!(!ne.contains("TOWGS84"), "{ne}");
+        assert!(
+            ne.ends_with(
+                r#"AXIS["Northing",NORTH],AXIS["Easting",EAST],AUTHORITY["EPSG","3035"]]"#
+            ),
+            "{ne}"
+        );
+        let polar = EpsgCrs::get(3031).unwrap().wkt();
+        assert!(!polar.contains("AXIS["), "{polar}");
+        let en = EpsgCrs::get(25832).unwrap().wkt();
+        assert!(
+            en.contains(r#"AXIS["Easting",EAST],AXIS["Northing",NORTH]"#),
+            "{en}"
+        );
+        assert_eq!(
+            strip_nodes("A[x,T[1,B[2]],C[3]],T[4]", ",T["),
+            "A[x,C[3]]".to_string()
+        );
     }
 
     /// Forward then inverse returns the point (PROJ.4 inverses are iterated to ~1e-10 rad).

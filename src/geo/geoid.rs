@@ -16,6 +16,7 @@
 use std::path::{Path, PathBuf};
 
 use super::ellipsoid::{WGS84_A, WGS84_E2};
+use super::geoid_vertical::GRID_VERTICAL_CRS;
 use crate::{Error, Result};
 
 /// Value GTX files use for "no data".
@@ -154,21 +155,63 @@ impl GeoidGrid {
         &self.name
     }
 
+    /// The vertical CRS PROJ ties to this grid (by file name, `geoid_vertical`, generated from
+    /// PROJ's database): its EPSG code and WKT1, e.g. 5703 (NAVD88 height) for
+    /// `us_noaa_g2018u0.tif`; `None` for a grid PROJ does not know.
+    pub fn vertical_crs(&self) -> Option<(u32, &'static str)> {
+        GRID_VERTICAL_CRS
+            .binary_search_by(|(name, _, _)| (*name).cmp(self.name.as_str()))
+            .ok()
+            .map(|i| (GRID_VERTICAL_CRS[i].1, GRID_VERTICAL_CRS[i].2))
+    }
+
     /// OGC WKT1 of the compound CRS: the horizontal CRS `horizontal_wkt` (named
-    /// `horizontal_name`) with heights above this grid's geoid (a `VERT_CS` named after the
-    /// grid file, orthometric datum type 2005, metres, up).
-    pub fn compound_wkt(&self, horizontal_name: &str, horizontal_wkt: &str) -> String {
+    /// `horizontal_name`) with heights above this grid's geoid: the grid's EPSG vertical CRS
+    /// when PROJ knows the grid ([`GeoidGrid::vertical_crs`], `AUTHORITY["EPSG",code]`), else
+    /// a `VERT_CS` named after the grid file (orthometric datum type 2005, metres, up).
+    ///
+    /// When the horizontal CRS's linear unit is not the metre (`metres_per_unit` != 1, e.g. US
+    /// survey feet), the heights are written in that unit: the vertical CRS takes the
+    /// horizontal CRS's `UNIT` node and a name with the unit, as EPSG names such CRSs
+    /// ("NAVD88 height (ftUS)", which PROJ identifies as EPSG:6360); its authority code, that
+    /// of the metre CRS, is dropped.
+    pub fn compound_wkt(
+        &self,
+        horizontal_name: &str,
+        horizontal_wkt: &str,
+        metres_per_unit: f64,
+    ) -> String {
         let grid = self.name.replace('"', "'");
-        format!(
-            concat!(
-                r#"COMPD_CS["{h} + {g} height",{hw},VERT_CS["{g} height","#,
-                r#"VERT_DATUM["{g}",2005],UNIT["metre",1,AUTHORITY["EPSG","9001"]],"#,
-                r#"AXIS["Gravity-related height",UP]]]"#
-            ),
-            h = horizontal_name,
-            g = grid,
-            hw = horizontal_wkt
-        )
+        let metre = r#"UNIT["metre",1,AUTHORITY["EPSG","9001"]]"#;
+        let fallback = format!(
+            r#"VERT_CS["{grid} height",VERT_DATUM["{grid}",2005],{metre},AXIS["Gravity-related height",UP]]"#
+        );
+        let mut vertical = self
+            .vertical_crs()
+            .map_or(fallback, |(_, wkt)| wkt.to_string());
+        if metres_per_unit != 1.0 {
+            let unit = horizontal_wkt
+                .rfind("UNIT[")
+                .map(|at| balanced_node(&horizontal_wkt[at..]))
+                .unwrap_or(metre);
+            let unit_name = unit.split('"').nth(1).unwrap_or("");
+            let suffix = match unit_name {
+                "US survey foot" => " (ftUS)",
+                "foot" => " (ft)",
+                _ => "",
+            };
+            if let Some(end) = vertical[9..].find('"') {
+                vertical.insert_str(9 + end, suffix);
+            }
+            vertical = vertical.replace(metre, unit);
+            if let Some(at) = vertical.rfind(",AUTHORITY[") {
+                if vertical[at..].matches('[').count() == 1 {
+                    vertical.replace_range(at..vertical.len() - 1, "");
+                }
+            }
+        }
+        let vname = vertical.split('"').nth(1).unwrap_or("height").to_string();
+        format!(r#"COMPD_CS["{horizontal_name} + {vname}",{horizontal_wkt},{vertical}]"#)
     }
 
     /// The grid's path.
@@ -246,6 +289,24 @@ impl GeoidGrid {
         let i = (x.floor() as usize).min(cells as usize - 1);
         Some((i, x - i as f64))
     }
+}
+
+/// The WKT node at the start of `wkt` (`NAME[...]`, brackets balanced), or all of `wkt`.
+fn balanced_node(wkt: &str) -> &str {
+    let mut depth = 0usize;
+    for (i, ch) in wkt.char_indices() {
+        match ch {
+            '[' => depth += 1,
+            ']' => {
+                depth = depth.saturating_sub(1);
+                if depth == 0 {
+                    return &wkt[..=i];
+                }
+            }
+            _ => {}
+        }
+    }
+    wkt
 }
 
 #[cfg(test)]

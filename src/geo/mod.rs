@@ -5,8 +5,10 @@
 
 pub mod ellipsoid;
 pub(crate) mod epsg;
+mod epsg_axes;
 pub mod geoid;
 mod geoid_tiff;
+mod geoid_vertical;
 pub mod local;
 pub mod projection;
 pub mod rotations;

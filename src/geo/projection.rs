@@ -286,6 +286,16 @@ impl MapFrame {
         }
     }
 
+    /// Metres per unit of the map axes: 1 but for an EPSG CRS in feet (1200/3937 for US survey
+    /// feet). The pipeline computes in metres and writes Z and the sigmas in this unit too
+    /// (docs/output.md).
+    pub fn metres_per_unit(&self) -> f64 {
+        match self {
+            MapFrame::Epsg { crs } => crs.metres_per_unit(),
+            _ => 1.0,
+        }
+    }
+
     /// OGC WKT1 (one line) of the frame, for the LAS WKT CRS VLR.
     ///
     /// UTM is a `PROJCS` and ECEF a `GEOCCS` carrying `AUTHORITY["EPSG",..]`, so PROJ/pyproj

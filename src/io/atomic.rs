@@ -21,6 +21,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 const TEMP_MARKER: &str = ".kinescan-";
 /// Suffix of every temporary file or folder.
 const TEMP_SUFFIX: &str = ".tmp";
+/// End of a publication journal's name (`io::publish`): while one is in a folder, the staging
+/// folders it names are the material of an interrupted publication, not garbage.
+pub(crate) const PUBLISH_JOURNAL_SUFFIX: &str = ".kinescan-publish.json";
 /// Buffer of [`AtomicFile::create`] (bytes).
 const DEFAULT_BUFFER_BYTES: usize = 1 << 20;
 
@@ -247,9 +250,20 @@ pub fn remove_stale_temps(dir: &Path) -> Result<Vec<PathBuf>> {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
         Err(e) => return Err(Error::io(dir, e)),
     };
+    let entries: Vec<std::fs::DirEntry> = entries
+        .collect::<std::io::Result<_>>()
+        .map_err(|e| Error::io(dir, e))?;
+    let journal = |e: &std::fs::DirEntry| {
+        e.file_name()
+            .to_str()
+            .is_some_and(|n| n.starts_with('.') && n.ends_with(PUBLISH_JOURNAL_SUFFIX))
+    };
+    if entries.iter().any(journal) {
+        // An interrupted publication: `io::publish::prepare_folder` completes it first.
+        return Ok(Vec::new());
+    }
     let mut removed = Vec::new();
     for entry in entries {
-        let entry = entry.map_err(|e| Error::io(dir, e))?;
         let name = entry.file_name();
         let Some(pid) = name.to_str().and_then(temp_owner_pid) else {
             continue;
@@ -288,13 +302,13 @@ fn temp_owner_pid(file_name: &str) -> Option<u32> {
 }
 
 #[cfg(target_os = "linux")]
-fn process_alive(pid: u32) -> bool {
+pub(crate) fn process_alive(pid: u32) -> bool {
     pid == std::process::id() || Path::new("/proc").join(pid.to_string()).exists()
 }
 
 /// Without a process table to ask, every owner counts as alive (nothing is removed).
 #[cfg(not(target_os = "linux"))]
-fn process_alive(_pid: u32) -> bool {
+pub(crate) fn process_alive(_pid: u32) -> bool {
     true
 }
 

@@ -1,12 +1,14 @@
 //! `kinescan info`: recognise an input file and summarise it (counts, time span, rate, gaps,
 //! ranges), streaming so multi-GB files cost one or two passes and bounded memory.
 //!
-//! Recognition: the `KSPROF01` magic means binary profiles; a text file whose first line is
+//! Recognition: the `LASF` signature means a LAS, LAZ or COPC file (its header and VLRs are
+//! read by `io::las::read`, not its points); the `KSPROF01` magic means binary profiles; a text file whose first line is
 //! a kinescan CSV header means CSV profiles, control points or patches; otherwise the file is
 //! taken as SBET (136-byte records) or SMRMSG (80-byte records) from its name (`.sbet`,
 //! `sbet*`, `.smrmsg`, `smrmsg*`) or, failing that, from its size and the plausibility of its
 //! first records. When both readings remain possible the file is refused as ambiguous.
 
+use super::las::inspect::{is_las, read_header, LasHeaderInfo};
 use super::mapped::f64_le;
 use super::patches::{read_patches, PATCHES_HEADER};
 use super::points::read_control_points;
@@ -42,6 +44,8 @@ pub enum FileKind {
     ControlPoints,
     /// Reference planar patches CSV.
     Patches,
+    /// LAS, LAZ or COPC point cloud.
+    Las,
 }
 
 /// One time gap: an interval longer than [`GAP_FACTOR`] times the median.
@@ -83,6 +87,25 @@ pub struct SbetRanges {
     pub h_m: (f64, f64),
     /// 3D speed |v| min, max (m/s).
     pub speed_mps: (f64, f64),
+    /// Roll min, max (deg).
+    pub roll_deg: (f64, f64),
+    /// Pitch min, max (deg).
+    pub pitch_deg: (f64, f64),
+    /// True heading (platform heading minus wander angle, wrapped to -180..180) min, max (deg).
+    pub heading_deg: (f64, f64),
+    /// Largest body angular rate magnitude per axis x, y, z (deg/s).
+    pub max_abs_rate_dps: [f64; 3],
+}
+
+/// Ranges of the RMS values of an SMRMSG file (min, max each).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SmrmsgRanges {
+    /// North, east, down position RMS (m).
+    pub position_m: [(f64, f64); 3],
+    /// North, east, down velocity RMS (m/s).
+    pub velocity_mps: [(f64, f64); 3],
+    /// Roll, pitch, heading RMS (arc-minutes).
+    pub attitude_arcmin: [(f64, f64); 3],
 }
 
 /// Summary of a profile source.
@@ -115,9 +138,15 @@ pub struct FileInfo {
     /// Time coverage (SBET, SMRMSG).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time: Option<TimeInfo>,
-    /// Position and speed ranges (SBET).
+    /// Position, speed, attitude and rate ranges (SBET).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sbet: Option<SbetRanges>,
+    /// RMS ranges (SMRMSG).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub smrmsg: Option<SmrmsgRanges>,
+    /// Header, CRS and extra dimensions (LAS, LAZ, COPC).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub las: Option<LasHeaderInfo>,
     /// Profile summary (binary or CSV profiles).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub profiles: Option<ProfileInfo>,
@@ -136,6 +165,8 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
         records: 0,
         time: None,
         sbet: None,
+        smrmsg: None,
+        las: None,
         profiles: None,
     };
     match kind {
@@ -149,6 +180,12 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
             let f = SmrmsgFile::open(path)?;
             info.records = f.len() as u64;
             info.time = Some(time_info(f.len(), |i| f.time_s(i)));
+            info.smrmsg = Some(smrmsg_ranges(&f));
+        }
+        FileKind::Las => {
+            let h = read_header(path)?;
+            info.records = h.points;
+            info.las = Some(h);
         }
         FileKind::ProfilesBinary => {
             let f = ProfileFile::open(path)?;
@@ -194,6 +231,9 @@ fn detect(path: &Path, size: u64) -> Result<FileKind> {
         .map_err(|e| Error::io(path, e))?;
     if first.starts_with(PROFILE_MAGIC) {
         return Ok(FileKind::ProfilesBinary);
+    }
+    if is_las(&first) {
+        return Ok(FileKind::Las);
     }
     if let Some(kind) = text_kind(&first) {
         return Ok(kind);
@@ -329,20 +369,53 @@ fn sbet_ranges(f: &SbetFile) -> SbetRanges {
     let speed = |r: &super::sbet::SbetRecord| {
         (r.vel_x_mps.powi(2) + r.vel_y_mps.powi(2) + r.vel_z_mps.powi(2)).sqrt()
     };
-    let mut out = SbetRanges {
-        lat_deg: (r0.lat_rad.to_degrees(), r0.lat_rad.to_degrees()),
-        lon_deg: (r0.lon_rad.to_degrees(), r0.lon_rad.to_degrees()),
-        h_m: (r0.alt_m, r0.alt_m),
-        speed_mps: (speed(&r0), speed(&r0)),
+    let heading = |r: &super::sbet::SbetRecord| {
+        crate::geo::rotations::wrap_pi(r.platform_heading_rad - r.wander_rad).to_degrees()
     };
-    for i in 1..f.len() {
+    let both = |v: f64| (v, v);
+    let mut out = SbetRanges {
+        lat_deg: both(r0.lat_rad.to_degrees()),
+        lon_deg: both(r0.lon_rad.to_degrees()),
+        h_m: both(r0.alt_m),
+        speed_mps: both(speed(&r0)),
+        roll_deg: both(r0.roll_rad.to_degrees()),
+        pitch_deg: both(r0.pitch_rad.to_degrees()),
+        heading_deg: both(heading(&r0)),
+        max_abs_rate_dps: [0.0; 3],
+    };
+    for i in 0..f.len() {
         let r = f.record(i);
         widen(&mut out.lat_deg, r.lat_rad.to_degrees());
         widen(&mut out.lon_deg, r.lon_rad.to_degrees());
         widen(&mut out.h_m, r.alt_m);
         widen(&mut out.speed_mps, speed(&r));
+        widen(&mut out.roll_deg, r.roll_rad.to_degrees());
+        widen(&mut out.pitch_deg, r.pitch_rad.to_degrees());
+        widen(&mut out.heading_deg, heading(&r));
+        let rates = [r.rate_x_radps, r.rate_y_radps, r.rate_z_radps];
+        for (m, v) in out.max_abs_rate_dps.iter_mut().zip(rates) {
+            *m = m.max(v.to_degrees().abs());
+        }
     }
     out
+}
+
+fn smrmsg_ranges(f: &SmrmsgFile) -> SmrmsgRanges {
+    let mut lo = [f64::INFINITY; 9];
+    let mut hi = [f64::NEG_INFINITY; 9];
+    for i in 0..f.len() {
+        let a = f.record(i).to_array();
+        for k in 0..9 {
+            lo[k] = lo[k].min(a[k + 1]);
+            hi[k] = hi[k].max(a[k + 1]);
+        }
+    }
+    let three = |first: usize| [0, 1, 2].map(|k| (lo[first + k], hi[first + k]));
+    SmrmsgRanges {
+        position_m: three(0),
+        velocity_mps: three(3),
+        attitude_arcmin: three(6),
+    }
 }
 
 fn profile_info(
@@ -377,6 +450,11 @@ impl fmt::Display for FileInfo {
             FileKind::ProfilesCsv => "CSV profiles",
             FileKind::ControlPoints => "control points (CSV)",
             FileKind::Patches => "reference planar patches (CSV)",
+            FileKind::Las => match &self.las {
+                Some(h) if h.copc => "COPC point cloud",
+                Some(h) if h.compressed => "LAZ point cloud",
+                _ => "LAS point cloud",
+            },
         };
         writeln!(f, "{}: {kind}, {} B", self.path, self.size_bytes)?;
         write!(f, "  records: {}", self.records)?;
@@ -397,12 +475,125 @@ impl fmt::Display for FileInfo {
                 s.speed_mps.0,
                 s.speed_mps.1
             )?;
+            write!(
+                f,
+                "\n  roll {:.3} .. {:.3} deg, pitch {:.3} .. {:.3} deg, heading {:.3} .. {:.3} \
+                 deg\n  largest angular rate x {:.2}, y {:.2}, z {:.2} deg/s",
+                s.roll_deg.0,
+                s.roll_deg.1,
+                s.pitch_deg.0,
+                s.pitch_deg.1,
+                s.heading_deg.0,
+                s.heading_deg.1,
+                s.max_abs_rate_dps[0],
+                s.max_abs_rate_dps[1],
+                s.max_abs_rate_dps[2]
+            )?;
+        }
+        if let Some(s) = &self.smrmsg {
+            let r = |v: (f64, f64), scale: f64, digits: usize| {
+                format!("{:.digits$} .. {:.digits$}", v.0 * scale, v.1 * scale)
+            };
+            let [n, e, d] = s.position_m;
+            let [vn, ve, vd] = s.velocity_mps;
+            let [ro, pi, he] = s.attitude_arcmin;
+            write!(
+                f,
+                "\n  position RMS north {} mm, east {} mm, down {} mm\n  velocity RMS north {}, \
+                 east {}, down {} mm/s\n  attitude RMS roll {}, pitch {}, heading {} arcmin",
+                r(n, 1e3, 1),
+                r(e, 1e3, 1),
+                r(d, 1e3, 1),
+                r(vn, 1e3, 1),
+                r(ve, 1e3, 1),
+                r(vd, 1e3, 1),
+                r(ro, 1.0, 3),
+                r(pi, 1.0, 3),
+                r(he, 1.0, 3)
+            )?;
+        }
+        if let Some(h) = &self.las {
+            write!(f, "\n{}", las_text(h))?;
         }
         if let Some(p) = &self.profiles {
             write!(f, "\n{p}")?;
         }
         Ok(())
     }
+}
+
+/// The text of a LAS/LAZ/COPC header for `kinescan info`.
+fn las_text(h: &LasHeaderInfo) -> String {
+    let mut s = format!(
+        "  LAS {}.{}, point format {} ({} B a record){}, software {}, system {}",
+        h.version.0,
+        h.version.1,
+        h.point_format,
+        h.record_length,
+        if h.compressed {
+            ", LASzip compressed"
+        } else {
+            ""
+        },
+        if h.software.is_empty() {
+            "-"
+        } else {
+            &h.software
+        },
+        if h.system.is_empty() { "-" } else { &h.system }
+    );
+    let returns: Vec<String> = h
+        .points_by_return
+        .iter()
+        .enumerate()
+        .filter(|(_, n)| **n > 0)
+        .map(|(k, n)| format!("{}: {n}", k + 1))
+        .collect();
+    s += &format!(
+        "\n  points {} (by return {})",
+        h.points,
+        if returns.is_empty() {
+            "-".to_string()
+        } else {
+            returns.join(", ")
+        }
+    );
+    s += &format!(
+        "\n  X {:.3} .. {:.3}, Y {:.3} .. {:.3}, Z {:.3} .. {:.3} (scale {} {} {}, offset {} {} {})",
+        h.min[0], h.max[0], h.min[1], h.max[1], h.min[2], h.max[2], h.scale[0], h.scale[1],
+        h.scale[2], h.offset[0], h.offset[1], h.offset[2]
+    );
+    s += &match &h.crs {
+        None => "\n  CRS: none stated".to_string(),
+        Some(c) => format!(
+            "\n  CRS: {}{}{}",
+            c.name,
+            c.epsg.map_or(String::new(), |e| format!(" (EPSG:{e})")),
+            c.vertical_epsg
+                .map_or(String::new(), |e| format!(", vertical EPSG:{e}"))
+        ),
+    };
+    s += &format!(
+        "\n  GPS time: {}, created day {} of {}",
+        if h.adjusted_gps_time {
+            "adjusted standard"
+        } else {
+            "week seconds"
+        },
+        h.created.0,
+        h.created.1
+    );
+    let dims: Vec<&str> = h.extra_dims.iter().map(|d| d.name.as_str()).collect();
+    s += &format!(
+        "\n  extra dimensions ({}): {}",
+        dims.len(),
+        if dims.is_empty() {
+            "-".to_string()
+        } else {
+            dims.join(", ")
+        }
+    );
+    s
 }
 
 impl fmt::Display for TimeInfo {

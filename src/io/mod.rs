@@ -7,6 +7,8 @@ pub mod counters;
 pub(crate) mod csv_text;
 pub(crate) mod digest;
 pub(crate) mod direct;
+pub mod gnss;
+pub mod imu;
 pub mod info;
 pub mod las;
 pub mod laz;

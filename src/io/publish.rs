@@ -6,8 +6,13 @@
 //!
 //! A lock per output stem ([`StemLock`]) keeps two runs from interleaving their files.
 
-use super::atomic::{copy_atomic, create_temp_dir, parent_dir, sync_dir};
+use super::atomic::{
+    copy_atomic, create_temp_dir, parent_dir, process_alive, remove_stale_temps, sync_dir,
+    write_json, PUBLISH_JOURNAL_SUFFIX,
+};
+use super::paths::{self, KeyedPath};
 use crate::{Error, Result};
+use serde::{Deserialize, Serialize};
 use std::fs::File;
 use std::path::{Path, PathBuf};
 
@@ -113,6 +118,16 @@ impl OutputSet {
     /// given), makes the renames durable and removes the staging folders. Returns the
     /// destinations, in publication order.
     pub fn publish(self, last: &[PathBuf]) -> Result<Vec<PathBuf>> {
+        self.publish_replacing(last, &[])
+    }
+
+    /// [`Self::publish`], then removes the files of `previous` (an earlier run's) that this
+    /// set does not hold. The renames and removals are first written to a journal
+    /// (`.<label>.kinescan-publish.json` beside the last file, durably), removed when all are
+    /// done: a process killed in between leaves the journal, and the next command that
+    /// writes the folder completes the publication from it ([`prepare_folder`]) before
+    /// anything else, so the folder holds the old set or the new one, never a mix.
+    pub fn publish_replacing(self, last: &[PathBuf], previous: &[PathBuf]) -> Result<Vec<PathBuf>> {
         let mut moves = Vec::new();
         for (dir, t) in &self.staging {
             let entries = std::fs::read_dir(t.path()).map_err(|e| Error::io(dir, e))?;
@@ -126,14 +141,123 @@ impl OutputSet {
         }
         let rank = |dest: &PathBuf| last.iter().position(|l| l == dest).map_or(0, |k| k + 1);
         moves.sort_by(|a, b| rank(&a.1).cmp(&rank(&b.1)).then_with(|| a.1.cmp(&b.1)));
-        for (from, to) in &moves {
-            std::fs::rename(from, to).map_err(|e| Error::io(to, e))?;
+        let produced: Vec<PathBuf> = moves.iter().map(|(_, to)| to.clone()).collect();
+        let absolute = |p: &Path| std::path::absolute(p).map_err(|e| Error::io(p, e));
+        let journal = Journal {
+            pid: std::process::id(),
+            moves: moves
+                .iter()
+                .map(|(from, to)| Ok((absolute(from)?, absolute(to)?)))
+                .collect::<Result<_>>()?,
+            remove: previous
+                .iter()
+                .filter(|p| !produced.contains(p))
+                .map(|p| absolute(p))
+                .collect::<Result<_>>()?,
+        };
+        let Some((_, anchor)) = moves.last() else {
+            journal.apply()?;
+            return Ok(produced);
+        };
+        let journal_dir = parent_dir(anchor).to_path_buf();
+        let journal_path = journal_dir.join(format!(".{}{PUBLISH_JOURNAL_SUFFIX}", self.label));
+        write_json(&journal_path, &journal)?;
+        journal.apply()?;
+        std::fs::remove_file(&journal_path).map_err(|e| Error::io(&journal_path, e))?;
+        sync_dir(&journal_dir).map_err(|e| Error::io(&journal_dir, e))?;
+        Ok(produced)
+    }
+}
+
+/// A publication's renames (staged file, destination) and removals, absolute paths.
+#[derive(Debug, Serialize, Deserialize)]
+struct Journal {
+    /// The publishing process: its journal is completed by another only once it is dead.
+    pid: u32,
+    moves: Vec<(PathBuf, PathBuf)>,
+    remove: Vec<PathBuf>,
+}
+
+/// Test hook: the process aborts (as a kill would stop it) right after this many renames of a
+/// publication (`KINESCAN_TEST_ABORT_AFTER_RENAMES=N`), so tests can stop one between its
+/// renames.
+const ABORT_HOOK: &str = "KINESCAN_TEST_ABORT_AFTER_RENAMES";
+
+impl Journal {
+    /// Does what the journal says; what a killed publication already did is skipped (a staged
+    /// file gone and its destination there was renamed).
+    fn apply(&self) -> Result<()> {
+        let abort_after: Option<usize> =
+            std::env::var(ABORT_HOOK).ok().and_then(|v| v.parse().ok());
+        for (k, (from, to)) in self.moves.iter().enumerate() {
+            match std::fs::rename(from, to) {
+                Ok(()) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::NotFound && to.is_file() => {}
+                Err(e) => return Err(Error::io(to, e)),
+            }
+            if abort_after == Some(k + 1) {
+                std::process::abort();
+            }
         }
-        for (dir, _) in &self.staging {
+        let mut dirs: Vec<&Path> = self.moves.iter().map(|(_, to)| parent_dir(to)).collect();
+        dirs.sort();
+        dirs.dedup();
+        for dir in dirs {
             sync_dir(dir).map_err(|e| Error::io(dir, e))?;
         }
-        Ok(moves.into_iter().map(|(_, to)| to).collect())
+        remove_unproduced(&self.remove, &[])?;
+        Ok(())
     }
+}
+
+/// Completes the publications a killed process left in `dir` (their journals), then removes
+/// the temporaries of dead processes: what every command does first in a folder it writes.
+/// Returns the journals completed.
+pub fn prepare_folder(dir: &Path) -> Result<Vec<PathBuf>> {
+    let completed = complete_interrupted(dir)?;
+    remove_stale_temps(dir)?;
+    Ok(completed)
+}
+
+/// The journals of interrupted publications in `dir`.
+pub fn interrupted_publications(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let mut found: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok())
+        .filter(|e| {
+            e.file_name()
+                .to_str()
+                .is_some_and(|n| n.starts_with('.') && n.ends_with(PUBLISH_JOURNAL_SUFFIX))
+        })
+        .map(|e| e.path())
+        .collect();
+    found.sort();
+    found
+}
+
+/// Completes every interrupted publication of `dir` from its journal.
+fn complete_interrupted(dir: &Path) -> Result<Vec<PathBuf>> {
+    let journals = interrupted_publications(dir);
+    let mut completed = Vec::new();
+    for path in &journals {
+        let text = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        let journal: Journal = serde_json::from_slice(&text).map_err(|e| {
+            Error::bad_file(
+                path,
+                format!("publication journal unreadable ({e}): remove it and run again"),
+            )
+        })?;
+        if journal.pid != std::process::id() && process_alive(journal.pid) {
+            continue;
+        }
+        journal.apply()?;
+        std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
+        sync_dir(dir).map_err(|e| Error::io(dir, e))?;
+        completed.push(path.clone());
+    }
+    Ok(completed)
 }
 
 /// Ends a run writing into `set`: when `result` is a success, publishes the set (`report`
@@ -146,8 +270,7 @@ pub fn conclude<T>(
     previous: &[PathBuf],
 ) -> Result<T> {
     let value = result.map_err(|e| set.user_error(e))?;
-    let produced = set.publish(&[report.to_path_buf()])?;
-    remove_unproduced(previous, &produced)?;
+    set.publish_replacing(&[report.to_path_buf()], previous)?;
     Ok(value)
 }
 
@@ -162,6 +285,9 @@ pub fn publish_folder<T>(
     names: &[&str],
     write: impl FnOnce(&Path) -> Result<T>,
 ) -> Result<T> {
+    // A killed run's publication is completed, its staging folder goes, before this run
+    // stages its own.
+    prepare_folder(out_dir)?;
     let mut set = OutputSet::new(label);
     let last = out_dir.join(last);
     let staged = set.stage(&last)?;
@@ -185,9 +311,14 @@ impl StemLock {
     /// Takes the lock for outputs named after `las`, or fails at once naming the lock when
     /// another run holds it.
     pub fn acquire(las: &Path) -> Result<StemLock> {
-        let dir = parent_dir(las);
-        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let stem = las.file_stem().unwrap_or_default().to_string_lossy();
+        Self::acquire_in(parent_dir(las), &stem, las)
+    }
+
+    /// Takes the lock `.<stem>.kinescan-lock` in `dir`, or fails at once naming `what` (the
+    /// output or folder the user gave) and the lock when another run holds it.
+    pub fn acquire_in(dir: &Path, stem: &str, what: &Path) -> Result<StemLock> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
         let path = dir.join(format!(".{stem}.kinescan-lock"));
         let file = std::fs::OpenOptions::new()
             .create(true)
@@ -198,7 +329,7 @@ impl StemLock {
         match file.try_lock() {
             Ok(()) => Ok(StemLock { _file: file }),
             Err(std::fs::TryLockError::WouldBlock) => Err(Error::bad_file(
-                las,
+                what,
                 format!(
                     "another kinescan run is writing these outputs (it holds {}): wait for it \
                      to end, or write to another path",
@@ -211,29 +342,32 @@ impl StemLock {
 }
 
 /// The outputs a previous run listed in its report at `report` (`outputs[].path` and
-/// `sync[].plots[]`) that are named after `las`'s stem, taken in `las`'s folder (the report may
-/// hold paths relative to another working folder); none without a readable report.
-pub fn previous_outputs(report: &Path, las: &Path) -> Vec<PathBuf> {
+/// `sync[].plots[]`) that this run may remove ([`paths::removable`]): by file name in
+/// `folder`, named as this run would name them (`owned`), none of `inputs`. None without a
+/// readable report.
+pub fn previous_outputs(
+    report: &Path,
+    folder: &Path,
+    owned: impl Fn(&str) -> bool,
+    inputs: &[KeyedPath],
+) -> Vec<PathBuf> {
     let Ok(text) = std::fs::read(report) else {
         return Vec::new();
     };
     let Ok(json) = serde_json::from_slice::<serde_json::Value>(&text) else {
         return Vec::new();
     };
-    let stem = las.file_stem().unwrap_or_default().to_string_lossy();
     let outputs = json["outputs"].as_array().into_iter().flatten();
     let plots = json["sync"]
         .as_array()
         .into_iter()
         .flatten()
         .flat_map(|s| s["plots"].as_array().into_iter().flatten());
-    outputs
+    let listed = outputs
         .map(|o| &o["path"])
         .chain(plots)
-        .filter_map(|p| Path::new(p.as_str()?).file_name())
-        .filter(|name| name.to_string_lossy().starts_with(&*stem))
-        .map(|name| las.with_file_name(name))
-        .collect()
+        .filter_map(|p| p.as_str().map(PathBuf::from));
+    paths::removable(listed, folder, owned, inputs)
 }
 
 /// Removes the files of `previous` that this run did not produce (`produced`), so a folder

@@ -135,10 +135,82 @@ impl TimedRecord for SbetRecord {
     }
 
     fn problem(fields: &[f64]) -> Option<String> {
-        (fields[1].abs() > std::f64::consts::FRAC_PI_2)
-            .then(|| format!("latitude {} rad is outside [-pi/2, pi/2]", fields[1]))
+        use std::f64::consts::{FRAC_PI_2, PI, TAU};
+        // A hair over each bound: values written from wrapped f64 angles may round over it.
+        let over = |v: f64, bound: f64| v.abs() > bound * (1.0 + 1e-9);
+        let degrees = "SBET angles are radians: degrees, or not an SBET file";
+        if over(fields[1], FRAC_PI_2) {
+            return Some(format!(
+                "latitude {} rad is outside [-pi/2, pi/2]",
+                fields[1]
+            ));
+        }
+        if over(fields[2], TAU) {
+            return Some(format!(
+                "longitude {} rad is outside [-2 pi, 2 pi]: {degrees}",
+                fields[2]
+            ));
+        }
+        if !(MIN_ALTITUDE_M..=MAX_ALTITUDE_M).contains(&fields[3]) {
+            return Some(format!(
+                "altitude {} m is not near the Earth's surface ({MIN_ALTITUDE_M} to \
+                 {MAX_ALTITUDE_M} m): a corrupt record, or not an SBET file",
+                fields[3]
+            ));
+        }
+        let angles = [(7, PI), (8, PI), (9, TAU), (10, TAU)];
+        let bad = angles.iter().find(|(k, bound)| over(fields[*k], *bound))?;
+        Some(format!(
+            "{} {} is beyond {} rad: {degrees}",
+            FIELD_NAMES[bad.0],
+            fields[bad.0],
+            if bad.1 == PI { "pi" } else { "2 pi" }
+        ))
+    }
+
+    /// A move or turn between two records that no vehicle can make: a corrupt record (its
+    /// neighbour named), not a trajectory to georeference with.
+    fn step_problem(prev: &[f64], next: &[f64]) -> Option<String> {
+        use std::f64::consts::{PI, TAU};
+        let dt = next[0] - prev[0];
+        let wrap = |d: f64| (d + PI).rem_euclid(TAU) - PI;
+        const EARTH_RADIUS_M: f64 = 6_371_000.0;
+        let north = (next[1] - prev[1]) * EARTH_RADIUS_M;
+        let east = wrap(next[2] - prev[2]) * EARTH_RADIUS_M * next[1].cos();
+        let up = next[3] - prev[3];
+        let speed = (north * north + east * east + up * up).sqrt() / dt;
+        if speed > MAX_SPEED_MPS {
+            return Some(format!(
+                "position jumps {:.1} m in {dt} s from the previous record ({speed:.0} m/s; no \
+                 survey vehicle exceeds {MAX_SPEED_MPS} m/s): a corrupt record (latitude, \
+                 longitude or altitude)",
+                speed * dt
+            ));
+        }
+        for k in [7, 8, 9] {
+            let rate = wrap(next[k] - prev[k]).abs() / dt;
+            if rate > MAX_TURN_RATE_RADPS {
+                return Some(format!(
+                    "{} turns {:.3} rad in {dt} s from the previous record ({rate:.0} rad/s; no \
+                     survey vehicle exceeds {MAX_TURN_RATE_RADPS} rad/s): a corrupt record, or \
+                     angles in degrees",
+                    FIELD_NAMES[k],
+                    rate * dt
+                ));
+            }
+        }
+        None
     }
 }
+
+/// Lowest plausible SBET altitude (m; the Dead Sea shore is at -430 m).
+pub const MIN_ALTITUDE_M: f64 = -1_000.0;
+/// Highest plausible SBET altitude (m; airborne surveys fly below 15 km).
+pub const MAX_ALTITUDE_M: f64 = 100_000.0;
+/// Fastest plausible survey platform (m/s; airborne surveys fly below 150 m/s).
+pub const MAX_SPEED_MPS: f64 = 1_000.0;
+/// Fastest plausible turn of a survey platform (rad/s, about 1,100 deg/s).
+pub const MAX_TURN_RATE_RADPS: f64 = 20.0;
 
 /// A validated, memory-mapped SBET file.
 pub type SbetFile = TimedFile<SbetRecord>;

@@ -22,6 +22,11 @@ pub trait TimedRecord: Sized {
     fn to_fields(&self, out: &mut [f64]);
     /// A format-specific problem with finite fields (range of a latitude, sign of an RMS...).
     fn problem(fields: &[f64]) -> Option<String>;
+    /// A problem between two consecutive valid records `prev` and `next` (a jump no vehicle
+    /// can make...); none by default.
+    fn step_problem(_prev: &[f64], _next: &[f64]) -> Option<String> {
+        None
+    }
 }
 
 /// Maximum number of fields of a [`TimedRecord`].
@@ -57,6 +62,7 @@ impl<R: TimedRecord> TimedFile<R> {
     fn validate(&self) -> Result<()> {
         let mut prev_t = f64::NEG_INFINITY;
         let mut f = [0.0; MAX_FIELDS];
+        let mut prev = [0.0; MAX_FIELDS];
         for i in 0..self.len() {
             let f = self.fields(i, &mut f);
             let names = R::field_names();
@@ -70,6 +76,8 @@ impl<R: TimedRecord> TimedFile<R> {
                      time going backwards or repeating",
                     f[0]
                 ))
+            } else if i > 0 {
+                R::step_problem(&prev[..R::FIELDS], f)
             } else {
                 None
             };
@@ -77,6 +85,7 @@ impl<R: TimedRecord> TimedFile<R> {
                 return Err(Error::bad_record(self.path(), format!("record {i}"), p));
             }
             prev_t = f[0];
+            prev[..R::FIELDS].copy_from_slice(f);
         }
         Ok(())
     }

@@ -2,7 +2,7 @@
 //! checked against each other before any work (`io::paths`).
 
 use super::config::{LoadedPipeline, OutputConfig, OutputFormat, PipelineConfig, SplitMode};
-use crate::io::paths::{check_collisions, KeyedPath};
+use crate::io::paths::{check_collisions, check_distinct_inputs, KeyedPath};
 use crate::Result;
 use std::path::{Path, PathBuf};
 
@@ -144,7 +144,14 @@ pub fn existing_numbered_parts(las: &Path, stem: &str, ext: &str) -> Vec<PathBuf
         .collect()
 }
 
-/// Refuses a pipeline whose outputs would overwrite one of its inputs or each other.
+/// Refuses a pipeline whose outputs would overwrite one of its inputs or each other, and a
+/// profile file listed twice (by path, link or a copy: its points would be written twice).
 pub fn check_collisions_of(p: &LoadedPipeline) -> Result<()> {
-    check_collisions(&inputs(p), &outputs(&p.config))
+    let inputs = inputs(p);
+    check_collisions(&inputs, &outputs(&p.config))?;
+    let profiles: Vec<KeyedPath> = inputs
+        .into_iter()
+        .filter(|(k, _)| k.starts_with("inputs.profiles"))
+        .collect();
+    check_distinct_inputs(&profiles)
 }

@@ -182,6 +182,9 @@ pub struct GeoreferencedReturn {
     pub x_e_m: Vector3<f64>,
     /// Map point (m) in the output frame; Z orthometric with a geoid grid.
     pub x_map_m: Vector3<f64>,
+    /// LAS 1.4 scan angle (rad): from nadir, positive to the right looking forward
+    /// ([`ReturnTerms::scan_angle_rad`]).
+    pub scan_angle_rad: f64,
 }
 
 /// Georeferences the returns of one input (module docs).
@@ -289,6 +292,7 @@ impl<'a> ReturnGeoreferencer<'a> {
             terms,
             x_e_m,
             x_map_m,
+            scan_angle_rad: terms.scan_angle_rad(&self.sensor.lever_arm_b_m),
         })
     }
 

@@ -36,6 +36,7 @@ pub(crate) mod write;
 
 pub use config::{load, LoadedPipeline};
 pub use sync::ResolvedClock;
+pub use write::survey_date;
 
 use georeference::ReturnGeoreferencer;
 use report::{OutputReport, ReturnCounts, RunReport, StageTiming};
@@ -138,6 +139,7 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
         inputs.push(report);
     }
     bar.finish_and_clear();
+    check_rejected_share(p, &inputs, &synced.clocks, prepared.traj.span_s())?;
     check_not_empty(p, &inputs)?;
     let summaries = sink.finish()?;
     let georef_s = started.elapsed().as_secs_f64();
@@ -153,14 +155,17 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
     inputs.iter().for_each(|i| totals.merge(&i.counts));
     let outputs = summaries
         .into_iter()
-        .map(|s| OutputReport {
-            path: s.path,
-            points: s.point_count,
-            min_m: s.min_m,
-            max_m: s.max_m,
-            bytes: s.file_bytes,
+        .map(|s| {
+            Ok(OutputReport {
+                sha256: crate::io::digest::FileRecord::of("las", &s.path)?.sha256,
+                path: s.path,
+                points: s.point_count,
+                min_m: s.min_m,
+                max_m: s.max_m,
+                bytes: s.file_bytes,
+            })
         })
-        .collect();
+        .collect::<crate::Result<_>>()?;
     Ok(RunReport {
         kinescan_version: env!("CARGO_PKG_VERSION").into(),
         files: prepared.files,
@@ -179,6 +184,100 @@ fn run_stages(p: &LoadedPipeline, opts: &RunOptions, threads: usize) -> crate::R
         peak_rss_bytes: report::peak_rss_bytes(),
         sync: synced.reports,
     })
+}
+
+/// Refuses a run whose returns are rejected (for any reason but a missing return) in a share
+/// above `output.max_rejected_share`, naming the main reason's likely cause: for returns
+/// outside the trajectory, the clock (`time.t0_s`: absolute time, a wrong week, another day).
+fn check_rejected_share(
+    p: &LoadedPipeline,
+    inputs: &[report::InputReport],
+    clocks: &[sync::ResolvedClock],
+    (traj_start, traj_end): (f64, f64),
+) -> crate::Result<()> {
+    use report::RejectReason;
+    let max = p.config.output.max_rejected_share;
+    let source = p.path.display().to_string();
+    for (k, (input, clock)) in inputs.iter().zip(clocks).enumerate() {
+        let c = &input.counts;
+        let missing = c
+            .rejected
+            .get(&RejectReason::MissingReturn)
+            .copied()
+            .unwrap_or(0);
+        let rejected = c.rejected_total() - missing;
+        let share = rejected as f64 / c.read.max(1) as f64;
+        if share <= max {
+            continue;
+        }
+        let Some((&reason, &n)) = c
+            .rejected
+            .iter()
+            .filter(|(r, _)| **r != RejectReason::MissingReturn)
+            .max_by_key(|(_, n)| **n)
+        else {
+            continue;
+        };
+        let what = format!(
+            "{:.1}% of the {} returns of inputs.profiles[{k}] ({}) are rejected (more than \
+             output.max_rejected_share = {max}), {n} of them as {}",
+            share * 100.0,
+            c.read,
+            input.file.path.display(),
+            reason.describe()
+        );
+        let software = clock.clock.model == crate::timing::TimeModel::Software;
+        let first = input.profile_range.map(|(first, _)| first);
+        let (key, cause) = match (reason, first) {
+            (RejectReason::OutsideTrajectory, Some(first)) if software => {
+                let s = &clock.clock.clock;
+                let t = s.t0_s + s.period_s * f64::from(first);
+                let week = 604_800.0;
+                let off = t - 0.5 * (traj_start + traj_end);
+                let weeks = (off / week).round();
+                let hint = if weeks != 0.0 && (off - weeks * week).abs() < traj_end - traj_start {
+                    format!("; that is {weeks} GPS week(s) off: the week of t0_s is wrong")
+                } else {
+                    String::new()
+                };
+                let cause = format!(
+                    "the clock puts profile {first} at {t:.3} s but the trajectory spans \
+                     {traj_start:.3}..{traj_end:.3} s of the week{hint}: check time.t0_s and \
+                     time.period_s (or [sync])"
+                );
+                ("time.t0_s", cause)
+            }
+            (RejectReason::OutsideTrajectory | RejectReason::TrajectoryGap, _) => (
+                "inputs.sbet",
+                "the trajectory does not cover the scanner's times: check the trajectory \
+                 file and the clock (time.t0_s, time.period_s)"
+                    .to_string(),
+            ),
+            (RejectReason::RangeOutOfLimits, _) => (
+                "sensor.max_range_m",
+                "check sensor.min_range_m and sensor.max_range_m against the scanner's ranges"
+                    .to_string(),
+            ),
+            (RejectReason::OutsideAccuracy, _) => (
+                "inputs.smrmsg",
+                "the SMRMSG file does not cover the scanner's times".to_string(),
+            ),
+            (RejectReason::NoGeoidValue, _) => (
+                "output.geoid",
+                "the geoid grid has no value under the points".to_string(),
+            ),
+            _ => (
+                "output.max_rejected_share",
+                "check the profile file; raise output.max_rejected_share to accept it".to_string(),
+            ),
+        };
+        return Err(crate::Error::config(
+            source,
+            key,
+            format!("{what}: {cause}; nothing was published"),
+        ));
+    }
+    Ok(())
 }
 
 /// Refuses a run that wrote no point unless `output.allow_empty` (before anything is

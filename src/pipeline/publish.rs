@@ -6,8 +6,7 @@
 
 use super::config::LoadedPipeline;
 use super::report::RunReport;
-use crate::io::atomic::remove_stale_temps;
-use crate::io::publish::{conclude, previous_outputs, OutputSet, StemLock};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::Result;
 use std::path::Path;
 
@@ -23,9 +22,17 @@ pub fn publish_run(
     let report_path = c.output.report_path();
     let _lock = StemLock::acquire(las)?;
     for dir in [parent(las), parent(&report_path)] {
-        remove_stale_temps(dir)?;
+        prepare_folder(dir)?;
     }
-    let previous = previous_outputs(&report_path, las);
+    let stem = c.output.stem();
+    let owned = |name: &str| {
+        let named = name
+            .strip_prefix(&*stem)
+            .is_some_and(|rest| rest.starts_with('.') || rest.starts_with('_'));
+        named && [".las", ".laz", ".png"].iter().any(|e| name.ends_with(e))
+    };
+    let inputs = super::files::inputs(p);
+    let previous = previous_outputs(&report_path, parent(las), owned, &inputs);
     let mut set = OutputSet::new(&c.output.stem());
     let mut staged = p.clone();
     staged.config.output.las = set.stage(las)?.into();

@@ -141,6 +141,8 @@ pub struct OutputReport {
     pub max_m: [f64; 3],
     /// Size (bytes).
     pub bytes: u64,
+    /// SHA-256 of the file, hex: `kinescan info FOLDER` checks the set against it.
+    pub sha256: String,
 }
 
 /// Wall time of one stage.

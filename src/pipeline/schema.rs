@@ -5,10 +5,11 @@
 //! Extra dimensions, in order: `range` (`output.range_dimension`), `return_index`
 //! (`output.return_index_dimension`), then with `[uncertainty]` `sigma_x`, `sigma_y`,
 //! `sigma_z`, with `write_95` `thu95`, `tvu95`, with `write_shares` the six `share_<group>`
-//! (docs/uncertainty.md).
+//! (docs/uncertainty.md), then `mirror_angle` (`output.mirror_angle_dimension`).
 
-use super::config::{PipelineConfig, UncertaintyConfig};
+use super::config::{FrameConfig, PipelineConfig, UncertaintyConfig};
 use super::georeference::GeoreferencedReturn;
+use crate::geo::projection::MapFrame;
 use crate::geo::rotations::wrap_pi;
 use crate::io::las::{ExtraDim, LasPoint};
 use crate::io::profiles::RawReturn;
@@ -35,8 +36,13 @@ pub struct OutputSchema {
     pub range: Option<usize>,
     /// Slot of `return_index`.
     pub return_index: Option<usize>,
+    /// Slot of `mirror_angle` (deg).
+    pub mirror_angle: Option<usize>,
     /// Slots of the uncertainty dimensions.
     pub uncertainty: Option<UncertaintySlots>,
+    /// File units per metre of Z and the sigmas: 1 but for an EPSG CRS in feet, whose X and Y
+    /// come in its unit from the projection (docs/output.md).
+    pub units_per_m: f64,
 }
 
 impl OutputSchema {
@@ -46,7 +52,14 @@ impl OutputSchema {
             dims: Vec::new(),
             range: None,
             return_index: None,
+            mirror_angle: None,
             uncertainty: None,
+            units_per_m: match c.output.frame {
+                FrameConfig::Epsg { code } => {
+                    MapFrame::from_epsg(code).map_or(1.0, |f| 1.0 / f.metres_per_unit())
+                }
+                _ => 1.0,
+            },
         };
         if c.output.range_dimension {
             s.range = Some(s.push(ExtraDim::f32("range", "measured range rho (m)")));
@@ -58,6 +71,25 @@ impl OutputSchema {
         if let Some(u) = &c.uncertainty {
             s.uncertainty = Some(s.push_uncertainty(u));
         }
+        if c.output.mirror_angle_dimension {
+            let dim = ExtraDim::f32("mirror_angle", "recorded mirror angle (deg)");
+            s.mirror_angle = Some(s.push(dim));
+        }
+        s
+    }
+
+    /// The uncertainty dimensions of `u` alone, in the order and with the names `run` gives
+    /// them (what `kinescan tpu` appends to a cloud), in metres.
+    pub fn uncertainty_only(u: &UncertaintyConfig) -> Self {
+        let mut s = OutputSchema {
+            dims: Vec::new(),
+            range: None,
+            return_index: None,
+            uncertainty: None,
+            mirror_angle: None,
+            units_per_m: 1.0,
+        };
+        s.uncertainty = Some(s.push_uncertainty(u));
         s
     }
 
@@ -68,12 +100,21 @@ impl OutputSchema {
     }
 
     fn push_uncertainty(&mut self, u: &UncertaintyConfig) -> UncertaintySlots {
-        let sigma_x = self.push(ExtraDim::f32("sigma_x", "1-sigma along X (m)"));
-        self.push(ExtraDim::f32("sigma_y", "1-sigma along Y (m)"));
-        self.push(ExtraDim::f32("sigma_z", "1-sigma along Z (m)"));
+        // Descriptions (32 bytes at most) name the unit: metres, or the feet of a foot CRS.
+        let unit = if self.units_per_m == 1.0 { "m" } else { "ft" };
+        let dim = |name: &str, what: &str| ExtraDim::f32(name, &format!("{what} ({unit})"));
+        let sigma_x = self.push(dim("sigma_x", "1-sigma along X"));
+        self.push(dim("sigma_y", "1-sigma along Y"));
+        self.push(dim("sigma_z", "1-sigma along Z"));
         let thu95 = u.write_95.then(|| {
-            let first = self.push(ExtraDim::f32("thu95", "95% horizontal, 1.7308 sig_r (m)"));
-            self.push(ExtraDim::f32("tvu95", "95% vertical, 1.96 sigma_z (m)"));
+            // 32 bytes with "(m)"; one fewer comma to fit "(ft)".
+            let what = if unit == "m" {
+                "95% horizontal, 1.7308 sig_r"
+            } else {
+                "95% horizontal 1.7308 sig_r"
+            };
+            let first = self.push(dim("thu95", what));
+            self.push(dim("tvu95", "95% vertical, 1.96 sigma_z"));
             first
         });
         let shares = u.write_shares.then(|| {
@@ -109,7 +150,9 @@ impl OutputSchema {
             point_source_id,
             range: self.range,
             return_index: self.return_index,
+            mirror_angle: self.mirror_angle,
             uncertainty: self.uncertainty,
+            units_per_m: self.units_per_m,
         }
     }
 }
@@ -121,17 +164,22 @@ pub struct PointFill {
     point_source_id: u16,
     range: Option<usize>,
     return_index: Option<usize>,
+    mirror_angle: Option<usize>,
     uncertainty: Option<UncertaintySlots>,
+    units_per_m: f64,
 }
 
 impl PointFill {
     /// The point of raw return `r` (record `index` of its file) georeferenced as `g`: map
-    /// coordinates, intensity, scan angle, GPS time, point source, `range`, `return_index`.
+    /// coordinates, intensity, scan angle (LAS 1.4: from nadir, positive to the right looking
+    /// forward), GPS time, point source, `range`, `return_index`, `mirror_angle`.
     #[inline]
     pub fn point(&self, r: &RawReturn, index: usize, g: &GeoreferencedReturn, p: &mut LasPoint) {
-        (p.x, p.y, p.z) = (g.x_map_m.x, g.x_map_m.y, g.x_map_m.z);
+        // x, y come in the CRS's unit from the projection; z (m) is converted to it (an exact
+        // multiplication by 1 for a metric frame).
+        (p.x, p.y, p.z) = (g.x_map_m.x, g.x_map_m.y, g.x_map_m.z * self.units_per_m);
         p.intensity = r.intensity;
-        p.scan_angle_deg = wrap_pi(r.beta_rad).to_degrees();
+        p.scan_angle_deg = g.scan_angle_rad.to_degrees();
         p.gps_time = g.t_s;
         p.point_source_id = self.point_source_id;
         if let Some(k) = self.range {
@@ -140,17 +188,22 @@ impl PointFill {
         if let Some(k) = self.return_index {
             p.extra[k] = index as f64;
         }
+        if let Some(k) = self.mirror_angle {
+            p.extra[k] = wrap_pi(r.beta_rad).to_degrees();
+        }
     }
 
     /// The uncertainty dimensions of `var`.
     #[inline]
     pub fn uncertainty(&self, var: &AxisVariances, p: &mut LasPoint) {
         let Some(u) = self.uncertainty else { return };
-        let sigma = var.sigma_xyz_m();
+        // In the file's unit (m, or the feet of a foot CRS).
+        let sigma = var.sigma_xyz_m() * self.units_per_m;
         p.extra[u.sigma_x..u.sigma_x + 3].copy_from_slice(sigma.as_slice());
         if let Some(k) = u.thu95 {
             // tvu95 = var.tvu95_m() without a second sqrt.
-            p.extra[k..k + 2].copy_from_slice(&[var.thu95_m(), TVU95_FACTOR * sigma.z]);
+            let thu95 = var.thu95_m() * self.units_per_m;
+            p.extra[k..k + 2].copy_from_slice(&[thu95, TVU95_FACTOR * sigma.z]);
         }
         if let Some(k) = u.shares {
             let shares = var.shares();
@@ -194,10 +247,13 @@ mod tests {
         let u = s.uncertainty.unwrap();
         assert_eq!((s.range, s.return_index), (Some(0), Some(1)));
         assert_eq!((u.sigma_x, u.thu95, u.shares), (2, None, Some(5)));
-        assert_eq!(s.dims().len(), 11);
-        // range f32, return_index f64, three f32 sigmas.
+        assert_eq!(s.dims().len(), 12);
+        // range f32, return_index f64, three f32 sigmas, six share bytes, mirror_angle last.
         assert_eq!(s.extra_byte_offset(1), 4);
         assert_eq!(s.extra_byte_offset(u.sigma_x), 12);
         assert_eq!(s.extra_byte_offset(5), 24);
+        assert_eq!(s.mirror_angle, Some(11));
+        assert_eq!(s.extra_byte_offset(11), 30);
+        assert_eq!(s.units_per_m, 1.0);
     }
 }

@@ -47,6 +47,8 @@ impl SinkSettings {
         origin.z -= geoid
             .and_then(|grid| grid.undulation_m(g.lat_rad, g.lon_rad))
             .unwrap_or(0.0);
+        // Z in the file is in the CRS's unit (feet for a foot CRS), as X and Y.
+        origin.z /= frame.metres_per_unit();
         let offset = c
             .output
             .offset_m
@@ -61,7 +63,9 @@ impl SinkSettings {
         let config = LasWriterConfig {
             layout,
             wkt: match geoid {
-                Some(grid) => grid.compound_wkt(&frame.to_string(), &frame.wkt()),
+                Some(grid) => {
+                    grid.compound_wkt(&frame.to_string(), &frame.wkt(), frame.metres_per_unit())
+                }
                 None => frame.wkt(),
             },
             system_identifier: "kinescan mobile laser scanning".into(),
@@ -89,6 +93,36 @@ impl SinkSettings {
     pub fn finish_parts(&self, parts: &[LasSummary]) -> Result<LasSummary> {
         finish_parts(&self.las, &self.config, parts)
     }
+}
+
+/// Survey date `YYYY-MM-DD` (UTC day of the GPS time, leap seconds aside) from the GPS week
+/// and seconds of week; None without a week.
+pub fn survey_date(gps_week: Option<u32>, sow: f64) -> Option<String> {
+    gps_week?;
+    let (day_of_year, year) = creation_date(gps_week, sow);
+    let leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+    let months = [
+        31,
+        if leap { 29 } else { 28 },
+        31,
+        30,
+        31,
+        30,
+        31,
+        31,
+        30,
+        31,
+        30,
+        31,
+    ];
+    let mut day = day_of_year;
+    for (m, len) in months.iter().enumerate() {
+        if day <= *len {
+            return Some(format!("{year:04}-{:02}-{day:02}", m + 1));
+        }
+        day -= len;
+    }
+    None
 }
 
 /// Survey day (day of year, year) from the GPS week and seconds of week; (0, 0) ("unknown",
@@ -278,6 +312,13 @@ pub fn into_format(format: OutputFormat, files: Vec<LasSummary>) -> Result<Vec<L
         .into_iter()
         .map(|mut s| {
             let laz = s.path.with_extension(format.extension());
+            if laz == s.path {
+                // `output.las` already has the format's extension: the uncompressed file
+                // moves aside, else it would be removed under the compressed one's name.
+                let aside = s.path.with_extension("uncompressed.las");
+                std::fs::rename(&s.path, &aside).map_err(|e| Error::io(&s.path, e))?;
+                s.path = aside;
+            }
             let sizes = match format {
                 OutputFormat::Copc => {
                     crate::io::copc::write_copc(&s.path, &laz, crate::io::copc::LEAF_POINTS)?
@@ -294,7 +335,19 @@ pub fn into_format(format: OutputFormat, files: Vec<LasSummary>) -> Result<Vec<L
 
 #[cfg(test)]
 mod tests {
-    use super::creation_date;
+    use super::{creation_date, survey_date};
+
+    #[test]
+    fn survey_date_from_gps_week() {
+        // GPS week 2390, Wednesday 12:00: 2025-10-29 (week 2390 starts Sunday 2025-10-26).
+        assert_eq!(
+            survey_date(Some(2390), 3.5 * 86_400.0).as_deref(),
+            Some("2025-10-29")
+        );
+        // Week 0, second 0: the GPS epoch.
+        assert_eq!(survey_date(Some(0), 0.0).as_deref(), Some("1980-01-06"));
+        assert_eq!(survey_date(None, 0.0), None);
+    }
 
     #[test]
     fn creation_date_from_gps_week() {

@@ -11,8 +11,11 @@
 mod checker;
 pub(crate) mod dynamics;
 pub(crate) mod effects;
+pub(crate) mod gnss;
+pub(crate) mod imu;
 pub(crate) mod nav;
 mod outputs;
+pub mod raw;
 pub(crate) mod route;
 pub(crate) mod scanner;
 pub mod scenario;
@@ -91,7 +94,10 @@ pub mod files {
     /// Every true parameter and injected effect.
     pub const TRUTH_JSON: &str = "truth.json";
     /// Every file a simulation may write.
-    pub const ALL: [&str; 9] = [
+    pub const ALL: [&str; 12] = [
+        super::raw::files::IMU,
+        super::raw::files::GNSS,
+        super::raw::files::RAW_TRUTH,
         SBET,
         SMRMSG,
         TRUTH_SBET,
@@ -113,7 +119,7 @@ pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Resu
     )?;
     if let Some(d) = opts.duration_s {
         sc.duration_s = d;
-        sc.validate("--duration")?;
+        sc.validate("--duration-s")?;
     }
     simulate_scenario(&sc, out_dir, opts)
 }
@@ -163,6 +169,10 @@ fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<S
     )?;
     if truth_sbet.is_some() {
         written.push(files::TRUTH_SBET);
+    }
+    if sc.raw.is_some() {
+        raw::write_raw(sc, dir)?;
+        written.extend([raw::files::IMU, raw::files::GNSS, raw::files::RAW_TRUTH]);
     }
     let model = ScannerModel::new(sc);
     let scan = scan(sc, &model, &world, frame, route.clone(), dir, opts)?;

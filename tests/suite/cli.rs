@@ -215,3 +215,168 @@ fn calibrate_latency_end_to_end_from_a_simulated_table() {
     assert!(sigma > 0.02e-3 && sigma < 0.1e-3, "sigma {sigma} s");
     assert!(dir.path().join("res/latency.json").exists());
 }
+
+/// Issue #24's messages, each read back in its new wording (each assertion fails on the old
+/// text quoted beside it).
+#[test]
+fn messages_say_what_to_do() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    survey(d);
+    // Was: "expected internally tagged enum FrameConfig".
+    let o = kinescan(
+        d,
+        &["validate", "pipeline.toml", "--set", "output.frame=\"utm\""],
+    );
+    let e = text(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("output.frame") && e.contains("frame = { kind = \"utm\" }"),
+        "{e}"
+    );
+    assert!(!e.contains("internally tagged"), "{e}");
+    // Was: "pipeline.toml: inputs: pipeline.toml: key `output.geoid`: ...".
+    let o = kinescan(
+        d,
+        &[
+            "validate",
+            "pipeline.toml",
+            "--set",
+            "output.geoid=\"none.gtx\"",
+        ],
+    );
+    let e = text(&o);
+    assert!(!o.status.success() && e.contains("none.gtx"), "{e}");
+    assert_eq!(e.matches("pipeline.toml").count(), 1, "{e}");
+    // Was: "(7.73 M returns/s on 1 threads)" and indicatif's "7,728,778.1459/s".
+    let o = kinescan(d, &["run", "pipeline.toml", "--threads", "1"]);
+    let out = text(&o);
+    assert!(o.status.success(), "{out}");
+    assert!(out.contains(" returns/s on 1 thread)"), "{out}");
+    let rate = out
+        .split(" rejected (")
+        .nth(1)
+        .and_then(|r| r.split(" returns/s").next())
+        .unwrap();
+    let digits = rate.chars().filter(char::is_ascii_digit).count();
+    assert!(digits <= 3 && !rate.contains(','), "rate `{rate}`");
+    // Was: "unknown field `day`" alone.
+    std::fs::write(
+        d.join("night.toml"),
+        "[day]\ntemplate = \"pipeline.toml\"\nout = \"n\"\n",
+    )
+    .unwrap();
+    let o = kinescan(d, &["run", "night.toml"]);
+    let e = text(&o);
+    assert!(
+        !o.status.success() && e.contains("kinescan day night.toml"),
+        "{e}"
+    );
+    // Was: JSON from `import` while `info` printed text.
+    std::fs::write(
+        d.join("p.csv"),
+        "profile,beta_rad,range_m,intensity\n0,0.1,5.5,3\n1,0.2,,4\n",
+    )
+    .unwrap();
+    let o = kinescan(d, &["import", "p.csv", "p.ksprof"]);
+    let imported = text(&o);
+    assert!(o.status.success(), "{imported}");
+    let info = text(&kinescan(d, &["info", "p.ksprof"]));
+    assert!(
+        imported.ends_with(&info),
+        "import:\n{imported}\ninfo:\n{info}"
+    );
+    assert!(!imported.contains('{'), "{imported}");
+    let o = kinescan(d, &["import", "p.csv", "q.ksprof", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["records"], 2);
+    // Was: "(paper 000)", "(paper 002)", "(conventions §6)".
+    for args in [
+        vec!["calibrate", "--help"],
+        vec!["calibrate", "latency", "--help"],
+        vec!["calibrate", "boresight", "--help"],
+        vec!["import", "--help"],
+        vec!["--help"],
+    ] {
+        let help = text(&kinescan(d, &args));
+        assert!(
+            !help.contains("paper 0") && !help.contains('§'),
+            "{args:?}: {help}"
+        );
+    }
+    let help = text(&kinescan(d, &["calibrate", "latency", "--help"]));
+    assert!(help.contains("docs/calibration.md"), "{help}");
+    // Was: "(or `--duration`)" for the option --duration-s.
+    let scenario = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/pipelines/scenario_survey_day.toml"
+    ))
+    .unwrap();
+    assert!(
+        scenario.contains("`--duration-s`") && !scenario.contains("`--duration`"),
+        "{scenario}"
+    );
+}
+
+/// `info` reads LAS, LAZ and COPC headers (was: "not recognised"), and prints the SBET's
+/// attitude and rate ranges and the SMRMSG's RMS ranges.
+#[test]
+fn info_reads_point_clouds_and_trajectory_ranges() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    survey(d);
+    for (format, file, kind) in [
+        ("las", "out/day_pass1.las", "LAS point cloud"),
+        ("laz", "out/day_pass1.laz", "LAZ point cloud"),
+        ("copc", "out/day_pass1.copc.laz", "COPC point cloud"),
+    ] {
+        let set = format!("output.format=\"{format}\"");
+        let o = kinescan(d, &["-q", "run", "pipeline.toml", "--set", &set]);
+        assert!(o.status.success(), "{}", text(&o));
+        let o = kinescan(d, &["info", file]);
+        let t = text(&o);
+        assert!(o.status.success(), "{t}");
+        for want in [
+            kind,
+            "LAS 1.4, point format 6",
+            "points 108000 (by return 1: 108000)",
+            "CRS: WGS 84 / UTM zone 32N (EPSG:32632)",
+            "extra dimensions (2): range, mirror_angle",
+        ] {
+            assert!(t.contains(want), "{format}: no `{want}` in\n{t}");
+        }
+        let o = kinescan(d, &["info", file, "--json"]);
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert_eq!(v["las"]["points"], 108_000, "{format}");
+        assert_eq!(v["las"]["crs"]["epsg"], 32632, "{format}");
+        let (min, max) = (&v["las"]["min"], &v["las"]["max"]);
+        for k in 0..3 {
+            let (lo, hi) = (min[k].as_f64().unwrap(), max[k].as_f64().unwrap());
+            assert!(
+                lo.is_finite() && hi > lo,
+                "{format}: axis {k}: {lo} .. {hi}"
+            );
+        }
+    }
+    // The synthetic trajectory rolls and pitches +-30 deg and turns through every heading.
+    let t = text(&kinescan(d, &["info", "traj.sbet"]));
+    assert!(
+        t.contains("roll -") && t.contains("largest angular rate"),
+        "{t}"
+    );
+    let o = kinescan(d, &["info", "traj.sbet", "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let roll = &v["sbet"]["roll_deg"];
+    let (lo, hi) = (roll[0].as_f64().unwrap(), roll[1].as_f64().unwrap());
+    // 200 Hz samples of 30 sin(0.7 t): within 0.01 deg of the extremes.
+    assert!(
+        (lo + 30.0).abs() < 0.01 && (hi - 30.0).abs() < 0.01,
+        "roll {lo} .. {hi}"
+    );
+    // Yaw rate 15 m/s on a 30 m circle: 0.5 rad/s = 28.65 deg/s.
+    let z_rate = v["sbet"]["max_abs_rate_dps"][2].as_f64().unwrap();
+    assert!((z_rate - 28.648).abs() < 0.01, "{z_rate}");
+    let t = text(&kinescan(d, &["info", "traj.smrmsg"]));
+    assert!(t.contains("attitude RMS roll 0.300 .. 0.300"), "{t}");
+    assert!(t.contains("position RMS north"), "{t}");
+}

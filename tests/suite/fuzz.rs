@@ -43,10 +43,11 @@ enum Parser {
     Patches,
     PipelineToml,
     ScenarioToml,
+    DayToml,
 }
 
 impl Parser {
-    const ALL: [Parser; 8] = [
+    const ALL: [Parser; 9] = [
         Parser::Sbet,
         Parser::Smrmsg,
         Parser::ProfilesBinary,
@@ -55,6 +56,7 @@ impl Parser {
         Parser::Patches,
         Parser::PipelineToml,
         Parser::ScenarioToml,
+        Parser::DayToml,
     ];
 
     fn file_name(self) -> &'static str {
@@ -67,6 +69,7 @@ impl Parser {
             Parser::Patches => "fuzz_patches.csv",
             Parser::PipelineToml => "fuzz_pipeline.toml",
             Parser::ScenarioToml => "fuzz_scenario.toml",
+            Parser::DayToml => "fuzz_day.toml",
         }
     }
 
@@ -96,13 +99,20 @@ impl Parser {
                 .map(|_| ())
                 .map_err(e)?,
             Parser::ScenarioToml => Scenario::load(path).map(|_| ()).map_err(e)?,
+            // The day file with its template and profile files beside it (`day_folder`).
+            Parser::DayToml => kinescan::app::day::config::load(path)
+                .map(|_| ())
+                .map_err(e)?,
         }
         Ok(())
     }
 
     /// `info` reads the data files too (kind detection, then the kind's reader).
     fn has_info(self) -> bool {
-        !matches!(self, Parser::PipelineToml | Parser::ScenarioToml)
+        !matches!(
+            self,
+            Parser::PipelineToml | Parser::ScenarioToml | Parser::DayToml
+        )
     }
 }
 
@@ -200,8 +210,9 @@ fn make_samples() -> Samples {
         .iter()
         .map(|s| read(root.join(format!("pipelines/scenario_{s}.toml"))))
         .collect();
+    let days = day_folder(&dir.join(format!("{:?}", Parser::DayToml)));
     let by_parser = vec![
-        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios,
+        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days,
     ];
     Samples { dir, by_parser }
 }
@@ -212,6 +223,24 @@ fn fixed_count_profiles(bytes: &[u8], n: usize) -> Vec<u8> {
     let mut out = bytes[..64 + 40 * n].to_vec();
     out[24..32].copy_from_slice(&(n as u64).to_le_bytes());
     out
+}
+
+/// The day files' folder (`dir`): a template (the sync pipeline) and three profile files; the
+/// samples are day files over them, per pass and in tiles, with a night's options.
+fn day_folder(dir: &Path) -> Vec<Vec<u8>> {
+    std::fs::create_dir_all(dir).unwrap();
+    std::fs::write(dir.join("template.toml"), sync_pipeline()).unwrap();
+    for name in ["p01.ksprof", "p02.ksprof", "p03.csv"] {
+        std::fs::write(dir.join(name), b"only its existence is checked").unwrap();
+    }
+    let per_pass = "[day]\ntemplate = \"template.toml\"\nout = \"night\"\nunit_s = 30.0\n\n\
+                    [[passes]]\nname = \"p01\"\nprofiles = [\"p01.ksprof\"]\n\n\
+                    [[passes]]\nname = \"p-02_b\"\nprofiles = [\"p02.ksprof\", \"p03.csv\"]\n";
+    let tiles = "[day]\ntemplate = \"template.toml\"\nout = \"night\"\n\
+                 layout = { kind = \"tiles\", size_m = 50.0 }\n\n\
+                 [day.night]\nsync = false\ndiagnose = true\nauto_correct = true\n\n\
+                 [[passes]]\nname = \"a\"\nprofiles = [\"p01.ksprof\"]\n";
+    vec![per_pass.into(), tiles.into()]
 }
 
 fn sync_pipeline() -> String {

@@ -7,6 +7,7 @@
 use kinescan::geo::ellipsoid::{
     ecef_to_geodetic, geodetic_to_ecef, meridian_radius_m, prime_vertical_radius_m, Geodetic,
 };
+use kinescan::geo::geoid::GeoidGrid;
 use kinescan::geo::projection::MapFrame;
 use nalgebra::Vector3;
 use std::path::PathBuf;
@@ -200,7 +201,13 @@ fn automatic_zone_matches_oracle() {
 
 /// `MapFrame::wkt` output equals `tests/oracle/wkt_samples.tsv`, whose lines the oracle
 /// script's `--check` parses with pyproj and requires to identify as the listed EPSG code.
-/// Regenerate the file with `KINESCAN_BLESS_WKT=1 cargo test --test geodesy`.
+/// Regenerate the file with `KINESCAN_BLESS_WKT=1 cargo test --test suite wkt_matches`.
+///
+/// Beside UTM, ECEF and local ENU: every EPSG code of docs/output.md's accuracy table (the codes
+/// of tests/oracle/epsg_oracle.csv; `make_geodesy_oracle.py --check` also requires each code of
+/// the docs table here), EPSG:5514 (Krovak), and compound CRSs with orthometric heights: a grid
+/// PROJ knows by name (`g2018u0.gtx`, NAVD88 height, EPSG:5703; listed as `horizontal+vertical`)
+/// and one it does not (`geoid_test.gtx`, listed as `horizontal+none`).
 #[test]
 fn wkt_matches_samples_checked_by_pyproj() {
     let origin = Geodetic {
@@ -208,7 +215,7 @@ fn wkt_matches_samples_checked_by_pyproj() {
         lon_rad: -2.0,
         h_m: 12.5,
     };
-    let frames = [
+    let mut frames = vec![
         MapFrame::utm(32, true).unwrap(),
         MapFrame::utm(59, false).unwrap(),
         MapFrame::utm(1, true).unwrap(),
@@ -216,13 +223,54 @@ fn wkt_matches_samples_checked_by_pyproj() {
         MapFrame::Ecef,
         MapFrame::local_enu(origin).unwrap(),
     ];
-    let text: String = frames
+    let table = std::fs::read_to_string(oracle_dir().join("epsg_oracle.csv")).unwrap();
+    let mut codes: Vec<u32> = table
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').next().unwrap().parse().unwrap())
+        .collect();
+    codes.push(5514);
+    codes.sort_unstable();
+    codes.dedup();
+    assert!(codes.len() >= 25, "{codes:?}");
+    frames.extend(codes.iter().map(|&c| MapFrame::from_epsg(c).unwrap()));
+    let mut text: String = frames
         .iter()
         .map(|f| {
             let code = f.epsg().map_or("none".to_string(), |c| c.to_string());
             format!("{code}\t{}\n", f.wkt())
         })
         .collect();
+    let dir = tempfile::tempdir().unwrap();
+    let grid_bytes =
+        std::fs::read(PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/data/geoid_test.gtx"))
+            .unwrap();
+    // (grid file, horizontal frame, the codes pyproj must read): heights in US survey feet
+    // under EPSG:2263 are NAVD88 height (ftUS), EPSG:6360.
+    for (file, frame, expected) in [
+        (
+            "g2018u0.gtx",
+            MapFrame::from_epsg(2263).unwrap(),
+            "2263+6360",
+        ),
+        (
+            "g2018u0.gtx",
+            MapFrame::utm(18, true).unwrap(),
+            "32618+5703",
+        ),
+        (
+            "geoid_test.gtx",
+            MapFrame::from_epsg(25832).unwrap(),
+            "25832+none",
+        ),
+    ] {
+        std::fs::write(dir.path().join(file), &grid_bytes).unwrap();
+        let grid = GeoidGrid::open(&dir.path().join(file)).unwrap();
+        let known = grid.vertical_crs().map(|(c, _)| c);
+        assert_eq!(known, (file == "g2018u0.gtx").then_some(5703), "{file}");
+        let wkt = grid.compound_wkt(&frame.to_string(), &frame.wkt(), frame.metres_per_unit());
+        text.push_str(&format!("{expected}\t{wkt}\n"));
+    }
     let path = oracle_dir().join("wkt_samples.tsv");
     if std::env::var_os("KINESCAN_BLESS_WKT").is_some() {
         std::fs::write(&path, &text).unwrap();

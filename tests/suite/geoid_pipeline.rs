@@ -202,6 +202,8 @@ fn no_data_nodes_reject_points_with_their_reason() {
     let set = [
         format!("output.geoid = {:?}", grid.display().to_string()),
         "output.allow_empty = true".to_string(),
+        // Every point is rejected on purpose (issue #23's limit is 5% by default).
+        "output.max_rejected_share = 1".to_string(),
     ];
     let report = run(
         &config::load(&dir.join("pipeline.toml"), &set).unwrap(),

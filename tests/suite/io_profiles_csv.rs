@@ -23,7 +23,8 @@ fn random_returns(n: usize, columns: ProfileColumns) -> Vec<RawReturn> {
             RawReturn {
                 profile,
                 intensity: rng.random(),
-                beta_rad: (rng.random::<f64>() - 0.5) * 6.3 * 10f64.powi(rng.random_range(-20..3)),
+                // Every scale of a mirror angle up to 2 pi (the reader refuses beyond: degrees).
+                beta_rad: (rng.random::<f64>() - 0.5) * 12.5 * 10f64.powi(rng.random_range(-20..1)),
                 range_m,
                 alpha_rad: if columns.alpha { -0.0 } else { 0.0 },
                 time_s: if columns.time {
@@ -242,7 +243,10 @@ proptest::proptest! {
         let returns: Vec<RawReturn> = values
             .iter()
             .enumerate()
-            .filter(|(_, (b, _, a, t))| b.is_finite() && a.is_finite() && t.is_finite())
+            // Mirror angles beyond 2 pi are refused (degrees, issue #23).
+            .filter(|(_, (b, _, a, t))| {
+                b.is_finite() && b.abs() <= std::f64::consts::TAU && a.is_finite() && t.is_finite()
+            })
             .map(|(i, &(beta_rad, range_m, alpha_rad, time_s))| RawReturn {
                 profile: i as u32, intensity, beta_rad, range_m, alpha_rad, time_s,
             })

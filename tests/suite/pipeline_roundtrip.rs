@@ -612,3 +612,71 @@ fn epsg_frame_points_come_back_to_a_tenth_of_a_millimetre() {
         );
     }
 }
+
+/// LAS 1.4 scan angle against the geometry (ECEF output, so the test needs no projection): the
+/// angle from the downward vertical at the vehicle to the scanner-to-point vector, measured in
+/// the vertical plane across the vehicle's horizontal heading, positive to the right looking
+/// forward. The fixture rolls and pitches to 30 deg and its beams point everywhere, so the
+/// old field (the mirror angle, positive to the vehicle's left in this scanner mounting)
+/// fails the sign check on most points. Tolerance: half the 0.006 deg LAS unit plus the 1e-5 m
+/// coordinate quantisation seen from >= 2 m (3e-4 deg): 0.004 deg.
+#[test]
+fn scan_angle_is_nadir_referenced_and_positive_to_the_right() {
+    let f = fixture(3_000);
+    let d = f.dir.path();
+    let set = ["output.frame={ kind = \"ecef\" }".to_string()];
+    run(
+        &config::load(&d.join("pipeline.toml"), &set).unwrap(),
+        &quiet(1),
+    )
+    .unwrap();
+    let points = read_las(&d.join("out/cloud.las"));
+    let traj = Trajectory::open(
+        &d.join("traj.sbet"),
+        Some(&d.join("traj.smrmsg")),
+        TrajectoryOptions::default(),
+    )
+    .unwrap();
+    let mut cur = PoseCursor::new(&traj, TAU_S, 0.0);
+    let (mut right, mut left, mut worst_deg) = (0usize, 0usize, 0.0_f64);
+    for p in &points {
+        let pose = cur.at(p.gps_time.unwrap()).unwrap();
+        let r_b_e = kinescan::georef::r_b_to_e(&pose);
+        let scanner = pose.nav.r_e_m + r_b_e * Vector3::from(LEVER_ARM_B_M);
+        let v = Vector3::new(p.x, p.y, p.z) - scanner;
+        let g = ecef_to_geodetic(&pose.nav.r_e_m);
+        let down = -Vector3::new(
+            g.lat_rad.cos() * g.lon_rad.cos(),
+            g.lat_rad.cos() * g.lon_rad.sin(),
+            g.lat_rad.sin(),
+        );
+        let x_b = r_b_e.column(0).into_owned();
+        let forward = (x_b - down * x_b.dot(&down)).normalize();
+        let to_right = down.cross(&forward);
+        let (across, below) = (v.dot(&to_right), v.dot(&down));
+        let expected_deg = across.atan2(below).to_degrees();
+        let got_deg = f64::from(p.scan_angle);
+        // Within 0.01 deg of +-180 both signs are the same direction.
+        let diff = (got_deg - expected_deg + 180.0).rem_euclid(360.0) - 180.0;
+        raise_max(&mut worst_deg, diff.abs());
+        if across > 0.1 * v.norm() {
+            assert!(
+                got_deg > 0.0,
+                "point right of the van, scan angle {got_deg} deg"
+            );
+            right += 1;
+        } else if across < -0.1 * v.norm() {
+            assert!(
+                got_deg < 0.0,
+                "point left of the van, scan angle {got_deg} deg"
+            );
+            left += 1;
+        }
+    }
+    assert!(points.len() > 2_500, "{} points", points.len());
+    assert!(right > 500 && left > 500, "right {right}, left {left}");
+    assert!(
+        worst_deg <= 0.004,
+        "scan angle off the geometry by {worst_deg} deg"
+    );
+}

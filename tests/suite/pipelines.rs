@@ -23,6 +23,9 @@ fn covered_by(name: &str) -> Option<&'static str> {
         "sensitivity_parking_lot_expected.toml" | "sensitivity_parking_lot_ideal.toml" => {
             Some("tests/suite/uncertainty_parking_lot.rs")
         }
+        "trajectory_raw_city_block.toml" => {
+            Some("tests/suite/ins_trajectory.rs (trajectory_example_config_loads)")
+        }
         "cluster" => Some("tests/dask/check_day.py (CI): the Dask driver and the Slurm script"),
         _ => None,
     }

@@ -23,8 +23,9 @@ fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
     let o = kinescan(d, &["run", "pipeline.toml", "--set", "time.t0_s=1000"]);
     let e = stderr(&o);
     assert!(!o.status.success(), "{e}");
+    // Named by its cause, the clock (issue #23: it blamed `output.allow_empty`).
     assert!(
-        e.contains("output.allow_empty") && e.contains("no point written from 1800"),
+        e.contains("time.t0_s") && e.contains("1800 returns") && !e.contains("allow_empty"),
         "{e}"
     );
     assert_eq!(
@@ -42,6 +43,8 @@ fn a_run_that_writes_no_point_fails_and_keeps_the_old_output() {
             "time.t0_s=1000",
             "--set",
             "output.allow_empty=true",
+            "--set",
+            "output.max_rejected_share=1",
         ],
     );
     assert!(o.status.success(), "{}", stderr(&o));

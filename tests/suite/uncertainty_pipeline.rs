@@ -163,6 +163,7 @@ fn ins_sigmas_reach_the_las_along_the_map_axes() {
         "share_boresight",
         "share_scanner",
         "share_timing",
+        "mirror_angle",
     ];
     assert_eq!(names, expect);
     assert_eq!(values.len() as u64, report.totals.written);
@@ -173,7 +174,7 @@ fn ins_sigmas_reach_the_las_along_the_map_axes() {
             (horiz / (0.02 * 2f64.sqrt()) - 1.0).abs() < 5e-4,
             "horizontal {horiz}"
         );
-        assert!((v[4] - 1.0).abs() < 1e-6 && v[5..].iter().all(|s| *s == 0.0));
+        assert!((v[4] - 1.0).abs() < 1e-6 && v[5..10].iter().all(|s| *s == 0.0));
     }
 }
 
@@ -255,7 +256,9 @@ fn returns_outside_the_smrmsg_span_are_rejected() {
     );
     let raw = write_profiles(&dir.path().join("pass.ksprof"), 2);
     let path = write_pipeline(dir.path(), "short.smrmsg", FULL);
-    let report = run(&config::load(&path, &[]).unwrap(), &quiet()).unwrap();
+    // Half the returns are outside the SMRMSG on purpose (the default limit is 5%).
+    let set = ["output.max_rejected_share = 1".to_string()];
+    let report = run(&config::load(&path, &set).unwrap(), &quiet()).unwrap();
     let outside = raw
         .iter()
         .filter(|r| {
@@ -303,4 +306,72 @@ fn bad_uncertainty_tables_are_refused() {
         let err = config::load(&path, &[]).unwrap_err().to_string();
         assert!(err.contains(key), "expected `{key}` in: {err}");
     }
+}
+
+/// A CRS in US survey feet (EPSG:2263) has all three axes and the sigmas in feet (issue #24:
+/// Z and the sigmas were metres beside X, Y in feet). Against the same returns written in
+/// ECEF (whose ellipsoidal height is computed here) and in UTM (whose sigma_z, along the same
+/// up axis, is in metres): Z_ft * 1200/3937 is the ellipsoidal height to the quantisation
+/// (scale 1e-4 of either unit, so 2e-4 m with margin), sigma_z_ft * 1200/3937 is UTM's
+/// sigma_z to f32 rounding (1e-6 relative), and the descriptions say (ft).
+#[test]
+fn a_foot_crs_has_z_and_sigmas_in_feet() {
+    let dir = tempfile::tempdir().unwrap();
+    write_trajectory(dir.path());
+    write_profiles(&dir.path().join("pass.ksprof"), 2);
+    let path = write_pipeline(dir.path(), "traj.smrmsg", FULL);
+    let ft_m = 1200.0 / 3937.0;
+    let mut clouds = Vec::new();
+    for (frame, las) in [
+        ("{ kind = \"epsg\", code = 2263 }", "out/ft.las"),
+        ("{ kind = \"ecef\" }", "out/ecef.las"),
+        ("{ kind = \"utm\" }", "out/utm.las"),
+    ] {
+        let set = [
+            format!("output.frame={frame}"),
+            format!("output.las=\"{las}\""),
+        ];
+        run(&config::load(&path, &set).unwrap(), &quiet()).unwrap();
+        let file = dir.path().join(las);
+        clouds.push((read_las_points(&file), read_extra(&file)));
+    }
+    let (ft, ecef, utm) = (&clouds[0], &clouds[1], &clouds[2]);
+    assert!(ft.0.len() > 1000 && ft.0.len() == ecef.0.len() && ft.0.len() == utm.0.len());
+    let z_at = |names: &[String]| names.iter().position(|n| n == "sigma_z").unwrap();
+    let (kz_ft, kz_utm) = (z_at(&ft.1 .0), z_at(&utm.1 .0));
+    let (mut worst_h, mut worst_sigma) = (0.0_f64, 0.0_f64);
+    for k in 0..ft.0.len() {
+        let (p, e) = (&ft.0[k], &ecef.0[k]);
+        let h = kinescan::geo::ellipsoid::ecef_to_geodetic(&Vector3::new(e.x, e.y, e.z)).h_m;
+        let dh = (p.z * ft_m - h).abs();
+        let s_ft = f64::from(ft.1 .1[k][kz_ft]) * ft_m;
+        let s_m = f64::from(utm.1 .1[k][kz_utm]);
+        let rel = (s_ft / s_m - 1.0).abs();
+        assert!(dh.is_finite() && rel.is_finite(), "point {k}");
+        raise_max(&mut worst_h, dh);
+        raise_max(&mut worst_sigma, rel);
+    }
+    assert!(worst_h < 2e-4, "Z in feet off the height by {worst_h} m");
+    assert!(
+        worst_sigma < 1e-6,
+        "sigma_z in feet off by {worst_sigma} relative"
+    );
+    let header = kinescan::io::las::inspect::read_header(&dir.path().join("out/ft.las")).unwrap();
+    let sigma_z = header
+        .extra_dims
+        .iter()
+        .find(|d| d.name == "sigma_z")
+        .unwrap();
+    assert_eq!(sigma_z.description, "1-sigma along Z (ft)");
+    assert_eq!(header.crs.unwrap().epsg, Some(2263));
+}
+
+fn read_las_points(path: &Path) -> Vec<las::Point> {
+    let mut reader = las::Reader::from_path(path).unwrap();
+    reader
+        .read_all()
+        .unwrap()
+        .points()
+        .map(|p| p.unwrap())
+        .collect()
 }

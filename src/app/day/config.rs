@@ -4,6 +4,7 @@
 //! refused with their dotted key, relative paths are relative to the day file's folder.
 
 use crate::io::config_file::{self, ConfigPath};
+use crate::io::paths::{self, KeyedPath};
 use crate::pipeline::config::{self as pipeline_config, LoadedPipeline};
 use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
@@ -128,6 +129,10 @@ pub fn load(path: &Path) -> Result<LoadedDay> {
             return Err(Error::config(&parsed.source, key, problem));
         }
     }
+    if !c.day.template.is_file() {
+        let problem = format!("template {} is not a file", c.day.template.display());
+        return Err(Error::config(&parsed.source, "day.template", problem));
+    }
     // The template is checked with the first pass's files (its own list may be empty).
     let files: Vec<toml::Value> = c.passes[0]
         .profiles
@@ -142,6 +147,96 @@ pub fn load(path: &Path) -> Result<LoadedDay> {
         config: c,
         template,
     })
+}
+
+/// Every file a day reads, named by its key: the day file, the template and its inputs
+/// (trajectory, accuracy, sync and diagnosis files, geoid), every pass's profile files.
+pub fn inputs(day: &LoadedDay) -> Vec<KeyedPath> {
+    let mut v = vec![
+        ("day file".to_string(), day.path.clone()),
+        ("day.template".to_string(), day.template.path.clone()),
+    ];
+    let template = crate::pipeline::files::inputs(&day.template);
+    v.extend(
+        template
+            .into_iter()
+            .filter(|(k, _)| k != "pipeline file" && !k.starts_with("inputs.profiles"))
+            .map(|(k, p)| (format!("day.template: {k}"), p)),
+    );
+    for (i, pass) in day.config.passes.iter().enumerate() {
+        for (j, f) in pass.profiles.iter().enumerate() {
+            v.push((format!("passes[{i}].profiles[{j}]"), f.to_path_buf()));
+        }
+    }
+    v
+}
+
+/// Whether `name` is a file the day may write into its folder: a pass or tile LAS file
+/// (`<pass>.las`, `tile_<E>_<N>.las`), its reports, plan, journal or corrections.
+pub fn owns(name: &str) -> bool {
+    let las = name.strip_suffix(".las").is_some_and(|stem| {
+        !stem.is_empty()
+            && stem
+                .chars()
+                .all(|ch| ch.is_ascii_alphanumeric() || ch == '-' || ch == '_')
+    });
+    las || FILES.contains(&name)
+}
+
+/// The day's own files in its folder, besides the LAS files.
+pub const FILES: [&str; 6] = [
+    "day.report.json",
+    "report.md",
+    "report.html",
+    "plan.json",
+    "journal.jsonl",
+    CORRECTIONS,
+];
+
+/// The night's diagnosis and corrections of every pass (`night`).
+pub const CORRECTIONS: &str = "corrections.json";
+
+/// Every file a day may write or remove, named by its key: the pass LAS files (or every
+/// existing `*.las` its tiles may replace), its reports, plan, journal and corrections.
+pub fn outputs(day: &LoadedDay) -> Vec<KeyedPath> {
+    let out = &day.config.day.out;
+    let mut v: Vec<KeyedPath> = day
+        .config
+        .passes
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            (
+                format!("passes[{i}] output"),
+                out.join(format!("{}.las", p.name)),
+            )
+        })
+        .collect();
+    if let Layout::Tiles { .. } = day.config.day.layout {
+        let tile = |n: &str| n.starts_with("tile_") && owns(n);
+        v.extend(paths::existing_owned(out, "day.layout tiles", tile));
+    }
+    v.extend(FILES.iter().map(|f| (format!("day.out {f}"), out.join(f))));
+    v
+}
+
+/// Refuses a day whose outputs would overwrite one of its inputs (or each other), and a
+/// profile file given twice (by path, link or a copy). Before any work.
+pub fn check_files(day: &LoadedDay) -> Result<()> {
+    let inputs = inputs(day);
+    paths::check_collisions(&inputs, &outputs(day))?;
+    // The work units' files (hard links of the pass files once merged) may be replaced too.
+    let units = day.config.day.out.join("units");
+    paths::check_collisions(
+        &inputs,
+        &paths::existing_owned(&units, "day.out units/", |_| true),
+    )?;
+    let profiles: Vec<KeyedPath> = inputs
+        .into_iter()
+        .filter(|(k, _)| k.starts_with("passes["))
+        .collect();
+    paths::check_distinct_inputs(&profiles)
+        .map_err(|e| Error::Invalid(format!("{}: {e}", day.source)))
 }
 
 fn check(c: &DayConfig) -> std::result::Result<(), (String, String)> {

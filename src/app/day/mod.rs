@@ -15,6 +15,7 @@
 //!    published as one set (`io::publish`).
 
 pub mod config;
+pub mod health;
 pub mod journal;
 pub mod merge;
 pub mod morning;
@@ -23,8 +24,8 @@ pub mod plan;
 pub mod quality;
 pub mod units;
 
-use crate::io::atomic::{remove_stale_temps, write_atomic, write_json};
-use crate::io::publish::{conclude, OutputSet, StemLock};
+use crate::io::atomic::{write_atomic, write_json};
+use crate::io::publish::{conclude, prepare_folder, previous_outputs, OutputSet, StemLock};
 use crate::pipeline::prepare::Prepared;
 use crate::pipeline::report::ReturnCounts;
 use crate::pipeline::RunOptions;
@@ -59,6 +60,15 @@ pub struct DayReport {
     pub kinescan_version: String,
     /// The day file.
     pub day_file: PathBuf,
+    /// The day's output folder (`day.out`): the files, `report.md`, `report.html` (not in the
+    /// JSON: the files' paths name it).
+    #[serde(skip)]
+    pub out_dir: PathBuf,
+    /// Survey date (UTC, `YYYY-MM-DD`) of the trajectory's first record, from the template's
+    /// `inputs.gps_week`; None without it.
+    pub survey_date: Option<String>,
+    /// The output CRS as the LAS files state it (name, EPSG code, geoid grid).
+    pub crs: String,
     /// Work units planned.
     pub units: usize,
     /// Units found done in the journal (not run again by this invocation).
@@ -88,6 +98,10 @@ pub struct PassReport {
     pub counts: ReturnCounts,
     /// Seconds spent in its units (summed over the runs that did them).
     pub unit_seconds: f64,
+    /// GPS time of its first and last record (s); None for a pass without records.
+    pub time_span_s: Option<[f64; 2]>,
+    /// GNSS outages (SMRMSG) and SBET gaps within the pass.
+    pub trajectory: health::TrajectoryHealth,
 }
 
 /// One LAS file of the day.
@@ -97,19 +111,36 @@ pub struct OutputFile {
     pub path: PathBuf,
     /// Points.
     pub points: u64,
+    /// File size (bytes).
+    pub bytes: u64,
+    /// Header minimum X, Y, Z (file units).
+    pub min: [f64; 3],
+    /// Header maximum X, Y, Z (file units).
+    pub max: [f64; 3],
+    /// SHA-256 of the file, hex: `kinescan info FOLDER` checks the set against it.
+    pub sha256: String,
 }
 
 /// Runs `step` of the day file `path`; gives the report when the day was published.
 pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayReport>> {
     let day = config::load(path)?;
+    config::check_files(&day)?;
     let out = day.config.day.out.to_path_buf();
     std::fs::create_dir_all(out.join("units")).map_err(|e| Error::io(&out, e))?;
     let _lock = match step {
         Step::Unit(_) => None,
-        _ => Some(StemLock::acquire(&out.join("day.las"))?),
+        _ => Some(StemLock::acquire_in(&out, "day", &out)?),
     };
-    for dir in [out.clone(), out.join("units")] {
-        remove_stale_temps(&dir)?;
+    let diagnoses = day
+        .config
+        .passes
+        .iter()
+        .map(|p| out.join(format!("diagnosis_{}", p.name)));
+    for dir in [out.clone(), out.join("units")]
+        .into_iter()
+        .chain(diagnoses)
+    {
+        prepare_folder(&dir)?;
     }
     let mut timings = BTreeMap::new();
     let started = Instant::now();
@@ -305,7 +336,7 @@ fn publish(
 ) -> Result<DayReport> {
     let out = day.config.day.out.to_path_buf();
     let report_path = out.join("day.report.json");
-    let previous = previous_outputs(&report_path);
+    let previous = previous_outputs(&report_path, &out, las_of_day, &config::inputs(day));
     let mut set = OutputSet::new("day");
     let result = merge::merge(day, plan, done, &mut set).and_then(|(summaries, sigma)| {
         let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
@@ -328,6 +359,12 @@ fn publish(
     conclude(set, result, &report_path, &previous)
 }
 
+/// A LAS file the day may write (a pass or tile file): only those of a previous report's
+/// list may be removed.
+fn las_of_day(name: &str) -> bool {
+    name.ends_with(".las") && config::owns(name)
+}
+
 fn day_report(
     day: &LoadedDay,
     plan: &Plan,
@@ -345,6 +382,8 @@ fn day_report(
             units: 0,
             counts: ReturnCounts::default(),
             unit_seconds: 0.0,
+            time_span_s: None,
+            trajectory: health::TrajectoryHealth::default(),
         })
         .collect();
     let mut totals = ReturnCounts::default();
@@ -355,14 +394,48 @@ fn day_report(
         p.counts.merge(&e.counts);
         p.unit_seconds += e.seconds;
         totals.merge(&e.counts);
+        let [t0, t1] = u.time_window_s;
+        p.time_span_s = Some(
+            p.time_span_s
+                .map_or([t0, t1], |[a, b]| [a.min(t0), b.max(t1)]),
+        );
     }
+    let c = &day.template.config;
+    let traj = crate::pipeline::prepare::open_trajectory(c)?;
+    let spans: Vec<Option<[f64; 2]>> = passes.iter().map(|p| p.time_span_s).collect();
+    for (p, h) in passes.iter_mut().zip(health::per_pass(&traj, &spans)) {
+        p.trajectory = h;
+    }
+    let first = traj.sbet().record(0);
+    let frame = crate::pipeline::prepare::map_frame(&c.output.frame, &traj)?;
+    let code = frame
+        .epsg()
+        .map_or(String::new(), |e| format!(" (EPSG:{e})"));
+    let geoid = c.output.geoid.as_ref().map_or(String::new(), |g| {
+        let name = g.file_name().map(|n| n.to_string_lossy().into_owned());
+        format!(", heights above the geoid of {}", name.unwrap_or_default())
+    });
+    let unit = if frame.metres_per_unit() == 1.0 {
+        String::new()
+    } else {
+        format!(
+            ", Z and sigmas in the CRS's unit ({} m)",
+            frame.metres_per_unit()
+        )
+    };
     let outputs: Vec<OutputFile> = summaries
         .iter()
-        .map(|s| OutputFile {
-            path: set.final_path(&s.path),
-            points: s.point_count,
+        .map(|s| {
+            Ok(OutputFile {
+                path: set.final_path(&s.path),
+                points: s.point_count,
+                bytes: s.file_bytes,
+                min: s.min_m,
+                max: s.max_m,
+                sha256: crate::io::digest::FileRecord::of("las", &s.path)?.sha256,
+            })
         })
-        .collect();
+        .collect::<Result<_>>()?;
     let merged: u64 = outputs.iter().map(|o| o.points).sum();
     if merged != totals.written || totals.read != totals.written + totals.rejected_total() {
         return Err(Error::Invalid(format!(
@@ -377,6 +450,9 @@ fn day_report(
     Ok(DayReport {
         kinescan_version: env!("CARGO_PKG_VERSION").into(),
         day_file: day.path.clone(),
+        out_dir: day.config.day.out.to_path_buf(),
+        survey_date: crate::pipeline::survey_date(c.inputs.gps_week, first.time_s),
+        crs: format!("{frame}{code}{geoid}{unit}"),
         units: plan.units.len(),
         units_resumed: resumed,
         passes,
@@ -386,16 +462,4 @@ fn day_report(
         sigma: Vec::new(),
         diagnosis: Vec::new(),
     })
-}
-
-/// The LAS files the previous day report at `report` lists (none without one).
-fn previous_outputs(report: &Path) -> Vec<PathBuf> {
-    let Ok(text) = std::fs::read(report) else {
-        return Vec::new();
-    };
-    let json: serde_json::Value = serde_json::from_slice(&text).unwrap_or_default();
-    let outputs = json["outputs"].as_array().into_iter().flatten();
-    outputs
-        .filter_map(|o| o["path"].as_str().map(PathBuf::from))
-        .collect()
 }

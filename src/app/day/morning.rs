@@ -1,6 +1,9 @@
 //! The morning report of a day: `report.md` and `report.html` (self-contained: the plot is an
-//! embedded PNG) beside the day's files. Warnings first; then per pass the counts, the sync,
-//! the sigma statistics (per pass and per tile), the diagnosis and the timings.
+//! embedded PNG) beside the day's files. The day (date, CRS) and the warnings first, computed
+//! from the numbers below them; then per pass the points, rejected shares, trajectory
+//! (outages from the SMRMSG, SBET gaps), sigma medians, file and extent and the diagnosis's
+//! verdict with a link to its summary; the files; the sync; the sigma statistics per pass and
+//! the tiles summarised; the diagnosis; the timings in processing order.
 
 use super::plan::Plan;
 use super::DayReport;
@@ -11,6 +14,15 @@ use std::fmt::Write;
 
 /// Share of a pass's returns rejected (other than for no echo) above which the report warns.
 const REJECTED_WARNING: f64 = 0.01;
+/// Share of a pass's returns outside the trajectory (its span, a gap, the SMRMSG's span) above
+/// which the report warns.
+const OUTSIDE_TRAJECTORY_WARNING: f64 = 0.05;
+/// A pass whose sigma_z median exceeds this multiple of the day's median gets a warning.
+const SIGMA_WARNING_FACTOR: f64 = 2.0;
+/// More tiles than this are summarised (count, points, sigma range) rather than listed.
+const TILES_LISTED: usize = 8;
+/// The steps of a day in processing order (the report's timings).
+const STEP_ORDER: [&str; 5] = ["plan", "units", "diagnose", "corrected_units", "merge"];
 
 /// `report.md`: the report in Markdown.
 pub fn markdown(r: &DayReport, plan: &Plan) -> String {
@@ -58,7 +70,7 @@ pub fn html(r: &DayReport, plan: &Plan) -> Result<String> {
         for row in rows {
             s.push_str("<tr>");
             row.iter().for_each(|c| {
-                let _ = write!(s, "<td>{}</td>", esc(c));
+                let _ = write!(s, "<td>{}</td>", linked(&esc(c)));
             });
             s.push_str("</tr>\n");
         }
@@ -75,6 +87,24 @@ pub fn html(r: &DayReport, plan: &Plan) -> Result<String> {
     Ok(s)
 }
 
+/// A cell's Markdown links `[text](href)` as HTML anchors (the cell already escaped).
+fn linked(cell: &str) -> String {
+    let mut out = String::new();
+    let mut rest = cell;
+    while let Some(open) = rest.find('[') {
+        let Some((text, after)) = rest[open + 1..].split_once("](") else {
+            break;
+        };
+        let Some((href, tail)) = after.split_once(')') else {
+            break;
+        };
+        let _ = write!(out, "{}<a href=\"{href}\">{text}</a>", &rest[..open]);
+        rest = tail;
+    }
+    out.push_str(rest);
+    out
+}
+
 /// The report's sections: a title and a table (header row first; one column for notes).
 fn sections(r: &DayReport, plan: &Plan) -> Vec<(String, Vec<Vec<String>>)> {
     let mut warnings = warnings(r, plan);
@@ -86,14 +116,90 @@ fn sections(r: &DayReport, plan: &Plan) -> Vec<(String, Vec<Vec<String>>)> {
         t.extend(lines.into_iter().map(|l| vec![l]));
         t
     };
+    let day = vec![
+        vec!["item".to_string(), "value".to_string()],
+        vec![
+            "survey date".into(),
+            r.survey_date
+                .clone()
+                .unwrap_or_else(|| "unknown (no inputs.gps_week in the template)".into()),
+        ],
+        vec!["CRS".into(), r.crs.clone()],
+        vec!["day file".into(), r.day_file.display().to_string()],
+        vec![
+            "points".into(),
+            format!(
+                "{} written of {} returns read, in {} files ({})",
+                r.totals.written,
+                r.totals.read,
+                r.outputs.len(),
+                size(r.outputs.iter().map(|o| o.bytes).sum())
+            ),
+        ],
+        vec!["kinescan".into(), r.kinescan_version.clone()],
+    ];
     vec![
+        ("Day".into(), day),
         ("Warnings".into(), note("warning", warnings)),
         ("Passes".into(), passes(r)),
+        ("Files".into(), files(r)),
         ("Sync".into(), sync(r, plan)),
         ("Sigma".into(), sigma(r)),
         ("Diagnosis".into(), diagnosis(r)),
         ("Timings".into(), timings(r)),
     ]
+}
+
+/// A byte count in MB (or kB below 1 MB).
+fn size(bytes: u64) -> String {
+    if bytes >= 1_000_000 {
+        format!("{:.1} MB", bytes as f64 / 1e6)
+    } else {
+        format!("{:.1} kB", bytes as f64 / 1e3)
+    }
+}
+
+/// The day's sigma_z median over every pass's points (m): the median of the per-pass medians
+/// weighted by their points (the histograms are per pass).
+fn day_sigma_median(r: &DayReport) -> Option<f64> {
+    let mut per_pass: Vec<(f64, u64)> = r
+        .sigma
+        .iter()
+        .filter(|s| s.scope.starts_with("pass "))
+        .filter_map(|s| s.sigma_z_median_m.map(|m| (m, s.points)))
+        .collect();
+    per_pass.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: u64 = per_pass.iter().map(|p| p.1).sum();
+    let mut seen = 0;
+    per_pass.into_iter().find_map(|(m, n)| {
+        seen += n;
+        (2 * seen >= total).then_some(m)
+    })
+}
+
+/// Returns of `c` outside the trajectory: beyond its span, in a gap, beyond the SMRMSG's span.
+fn outside_trajectory(c: &crate::pipeline::report::ReturnCounts) -> u64 {
+    [
+        RejectReason::OutsideTrajectory,
+        RejectReason::TrajectoryGap,
+        RejectReason::OutsideAccuracy,
+    ]
+    .iter()
+    .map(|k| c.rejected.get(k).copied().unwrap_or(0))
+    .sum()
+}
+
+/// The sigma statistics of pass `name`.
+fn pass_sigma<'a>(r: &'a DayReport, name: &str) -> Option<&'a super::quality::SigmaStats> {
+    r.sigma.iter().find(|s| s.scope == format!("pass {name}"))
+}
+
+/// The output file of pass `name` (per-pass layout: the file named after the pass).
+fn pass_file<'a>(r: &'a DayReport, name: &str) -> Option<&'a super::OutputFile> {
+    r.outputs.iter().find(|o| {
+        let stem = o.path.file_name().and_then(|n| n.to_str()).unwrap_or("");
+        stem.split('.').next() == Some(name)
+    })
 }
 
 fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
@@ -115,6 +221,51 @@ fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
                 100.0 * share,
                 reasons(&p.counts)
             ));
+        }
+    }
+    for p in &r.passes {
+        for o in &p.trajectory.outages {
+            w.push(format!(
+                "pass {}: GNSS outage in the SMRMSG for {:.0} s (GPS {:.1} to {:.1} s), \
+                 horizontal position RMS up to {:.0} mm",
+                p.name,
+                o.seconds(),
+                o.span_s[0],
+                o.span_s[1],
+                o.peak_horizontal_rms_m * 1e3
+            ));
+        }
+        if !p.trajectory.gaps_s.is_empty() {
+            let longest = p.trajectory.gaps_s.iter().map(|g| g[1] - g[0]);
+            w.push(format!(
+                "pass {}: {} gap(s) in the SBET records, longest {:.2} s",
+                p.name,
+                p.trajectory.gaps_s.len(),
+                longest.fold(0.0, f64::max)
+            ));
+        }
+        let outside = outside_trajectory(&p.counts) as f64 / p.counts.read.max(1) as f64;
+        if outside > OUTSIDE_TRAJECTORY_WARNING {
+            w.push(format!(
+                "pass {}: {:.1}% of its returns lie outside the trajectory (its span, a gap or \
+                 the SMRMSG's span)",
+                p.name,
+                100.0 * outside
+            ));
+        }
+    }
+    if let Some(day) = day_sigma_median(r) {
+        for p in &r.passes {
+            let median = pass_sigma(r, &p.name).and_then(|s| s.sigma_z_median_m);
+            if let Some(m) = median.filter(|m| *m > SIGMA_WARNING_FACTOR * day) {
+                w.push(format!(
+                    "pass {}: sigma_z median {:.1} mm, {:.1}x the day's {:.1} mm",
+                    p.name,
+                    m * 1e3,
+                    m / day,
+                    day * 1e3
+                ));
+            }
         }
     }
     for i in &plan.inputs {
@@ -181,31 +332,133 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
         "read",
         "written",
         "rejected",
+        "rejected %",
+        "outside trajectory %",
         "by reason",
+        "GNSS outages",
+        "SBET gaps",
+        "sigma_z median (mm)",
+        "thu95 median (mm)",
+        "file",
+        "extent X x Y",
+        "diagnosis",
         "unit s",
     ];
     let mut t = vec![head.map(String::from).to_vec()];
-    let row =
-        |name: &str, units: usize, c: &crate::pipeline::report::ReturnCounts, secs: String| {
-            vec![
-                name.to_string(),
-                units.to_string(),
-                c.read.to_string(),
-                c.written.to_string(),
-                c.rejected_total().to_string(),
-                reasons(c),
-                secs,
-            ]
-        };
+    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}", v * 1e3));
+    let share = |n: u64, of: u64| format!("{:.2}", 100.0 * n as f64 / of.max(1) as f64);
     for p in &r.passes {
-        t.push(row(
-            &p.name,
-            p.units,
-            &p.counts,
+        let c = &p.counts;
+        let sigma = pass_sigma(r, &p.name);
+        let outages: Vec<String> = p
+            .trajectory
+            .outages
+            .iter()
+            .map(|o| format!("{:.0} s at {:.1}", o.seconds(), o.span_s[0]))
+            .collect();
+        let file = pass_file(r, &p.name);
+        let diagnosis =
+            r.diagnosis
+                .iter()
+                .find(|d| d.pass == p.name)
+                .map_or("-".to_string(), |d| {
+                    let folder = d
+                        .folder
+                        .file_name()
+                        .map(|f| f.to_string_lossy().into_owned());
+                    let summary = crate::app::diagnose::report::SUMMARY_MD;
+                    format!("[{}]({}/{summary})", d.verdict, folder.unwrap_or_default())
+                });
+        t.push(vec![
+            p.name.clone(),
+            p.units.to_string(),
+            c.read.to_string(),
+            c.written.to_string(),
+            c.rejected_total().to_string(),
+            share(c.rejected_total(), c.read),
+            share(outside_trajectory(c), c.read),
+            reasons(c),
+            if outages.is_empty() {
+                "none".into()
+            } else {
+                outages.join("; ")
+            },
+            p.trajectory.gaps_s.len().to_string(),
+            mm(sigma.and_then(|s| s.sigma_z_median_m)),
+            mm(sigma.and_then(|s| s.thu95_median_m)),
+            file.map_or("-".into(), |f| {
+                let name = f.path.file_name().unwrap_or_default().to_string_lossy();
+                format!("{name} ({})", size(f.bytes))
+            }),
+            file.map_or("-".into(), |f| {
+                format!("{:.0} x {:.0}", f.max[0] - f.min[0], f.max[1] - f.min[1])
+            }),
+            diagnosis,
             format!("{:.1}", p.unit_seconds),
-        ));
+        ]);
     }
-    t.push(row("day", r.units, &r.totals, String::new()));
+    let c = &r.totals;
+    t.push(vec![
+        "day".into(),
+        r.units.to_string(),
+        c.read.to_string(),
+        c.written.to_string(),
+        c.rejected_total().to_string(),
+        share(c.rejected_total(), c.read),
+        share(outside_trajectory(c), c.read),
+        reasons(c),
+        String::new(),
+        String::new(),
+        mm(day_sigma_median(r)),
+        String::new(),
+        String::new(),
+        String::new(),
+        String::new(),
+        String::new(),
+    ]);
+    t
+}
+
+/// The day's files (listed up to [`TILES_LISTED`], else summarised): points, size, extent.
+fn files(r: &DayReport) -> Vec<Vec<String>> {
+    let head = ["file", "points", "size", "min X, Y, Z", "max X, Y, Z"];
+    let mut t = vec![head.map(String::from).to_vec()];
+    let xyz = |v: [f64; 3]| format!("{:.1}, {:.1}, {:.1}", v[0], v[1], v[2]);
+    if r.outputs.len() <= TILES_LISTED {
+        for o in &r.outputs {
+            t.push(vec![
+                o.path
+                    .file_name()
+                    .unwrap_or_default()
+                    .to_string_lossy()
+                    .into(),
+                o.points.to_string(),
+                size(o.bytes),
+                xyz(o.min),
+                xyz(o.max),
+            ]);
+        }
+        return t;
+    }
+    let points: Vec<u64> = r.outputs.iter().map(|o| o.points).collect();
+    let min = r.outputs.iter().fold([f64::INFINITY; 3], |a, o| {
+        [0, 1, 2].map(|k| a[k].min(o.min[k]))
+    });
+    let max = r.outputs.iter().fold([f64::NEG_INFINITY; 3], |a, o| {
+        [0, 1, 2].map(|k| a[k].max(o.max[k]))
+    });
+    t.push(vec![
+        format!(
+            "{} tiles: {} to {} points each",
+            r.outputs.len(),
+            points.iter().min().copied().unwrap_or(0),
+            points.iter().max().copied().unwrap_or(0)
+        ),
+        points.iter().sum::<u64>().to_string(),
+        size(r.outputs.iter().map(|o| o.bytes).sum()),
+        xyz(min),
+        xyz(max),
+    ]);
     t
 }
 
@@ -259,7 +512,14 @@ fn sigma(r: &DayReport) -> Vec<Vec<String>> {
     ];
     let mut t = vec![head.map(String::from).to_vec()];
     let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}", v * 1e3));
-    for s in &r.sigma {
+    let (passes, tiles): (Vec<_>, Vec<_>) =
+        r.sigma.iter().partition(|s| s.scope.starts_with("pass "));
+    let listed = if tiles.len() <= TILES_LISTED {
+        r.sigma.iter().collect()
+    } else {
+        passes
+    };
+    for s in listed {
         t.push(vec![
             s.scope.clone(),
             s.points.to_string(),
@@ -267,6 +527,31 @@ fn sigma(r: &DayReport) -> Vec<Vec<String>> {
             mm(s.sigma_z_p95_m),
             mm(s.thu95_median_m),
             mm(s.thu95_p95_m),
+        ]);
+    }
+    if tiles.len() > TILES_LISTED {
+        let range = |f: fn(&super::quality::SigmaStats) -> Option<f64>| {
+            let v: Vec<f64> = tiles.iter().filter_map(|s| f(s)).collect();
+            let lo = v.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = v.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if v.is_empty() {
+                "-".to_string()
+            } else {
+                format!("{:.1} to {:.1}", lo * 1e3, hi * 1e3)
+            }
+        };
+        let points = tiles.iter().map(|s| s.points);
+        t.push(vec![
+            format!("{} tiles (range over tiles)", tiles.len()),
+            format!(
+                "{} to {}",
+                points.clone().min().unwrap_or(0),
+                points.max().unwrap_or(0)
+            ),
+            range(|s| s.sigma_z_median_m),
+            range(|s| s.sigma_z_p95_m),
+            range(|s| s.thu95_median_m),
+            range(|s| s.thu95_p95_m),
         ]);
     }
     t
@@ -325,37 +610,61 @@ fn estimates(a: &super::night::AppliedCorrection) -> String {
 
 fn timings(r: &DayReport) -> Vec<Vec<String>> {
     let mut t = vec![vec!["step".to_string(), "seconds".to_string()]];
-    t.extend(
-        r.timings_s
+    let rank = |k: &str| {
+        STEP_ORDER
             .iter()
+            .position(|s| *s == k)
+            .unwrap_or(STEP_ORDER.len())
+    };
+    let mut steps: Vec<(&String, &f64)> = r.timings_s.iter().collect();
+    steps.sort_by_key(|(k, _)| rank(k));
+    t.extend(
+        steps
+            .into_iter()
             .map(|(k, v)| vec![k.clone(), format!("{v:.2}")]),
     );
     t
 }
 
-/// Median and 95th percentile of sigma_z per pass (mm), as a PNG; None without sigmas.
+/// Median and 95th percentile of sigma_z per pass (mm), as a PNG, the passes named in the
+/// legend (one marker colour each, the median a marker and the 95th percentile a second one
+/// above it, at the pass's position in day-file order); None without sigmas.
 fn sigma_plot(r: &DayReport) -> Result<Option<Vec<u8>>> {
     let per_pass: Vec<_> = r
         .sigma
         .iter()
         .filter(|s| s.scope.starts_with("pass "))
         .collect();
-    let at = |f: fn(&super::quality::SigmaStats) -> Option<f64>| -> Vec<(f64, f64)> {
-        let points = per_pass.iter().enumerate();
-        points
-            .filter_map(|(k, s)| f(s).map(|v| ((k + 1) as f64, v * 1e3)))
-            .collect()
-    };
-    let (median, p95) = (at(|s| s.sigma_z_median_m), at(|s| s.sigma_z_p95_m));
-    if median.is_empty() {
+    let top = per_pass
+        .iter()
+        .filter_map(|s| s.sigma_z_p95_m.or(s.sigma_z_median_m))
+        .fold(0.0, f64::max)
+        * 1e3
+        * 1.2;
+    let mut plot = Plot::new(
+        "sigma_z per pass: median and 95th percentile",
+        "pass (day-file order)",
+        "sigma_z (mm)",
+    )
+    .x_range(0.5, per_pass.len() as f64 + 0.5)
+    .y_range(0.0, top.max(1e-3));
+    let mut any = false;
+    for (k, s) in per_pass.iter().enumerate() {
+        let x = (k + 1) as f64;
+        let points: Vec<(f64, f64)> = [s.sigma_z_median_m, s.sigma_z_p95_m]
+            .into_iter()
+            .flatten()
+            .map(|v| (x, v * 1e3))
+            .collect();
+        if !points.is_empty() {
+            any = true;
+            let name = s.scope.trim_start_matches("pass ");
+            plot = plot.scatter(name, &points);
+        }
+    }
+    if !any {
         return Ok(None);
     }
-    let top = p95.iter().map(|p| p.1).fold(0.0, f64::max) * 1.2;
-    let plot = Plot::new("sigma_z per pass", "pass (day-file order)", "sigma_z (mm)")
-        .x_range(0.5, per_pass.len() as f64 + 0.5)
-        .y_range(0.0, top.max(1e-3))
-        .scatter("median", &median)
-        .scatter("95th percentile", &p95);
     Ok(Some(plot.render()?.png_bytes()?))
 }
 

@@ -17,8 +17,7 @@ use serde::{Deserialize, Serialize};
 use sha2::{Digest, Sha256};
 use std::path::{Path, PathBuf};
 
-/// File of the decided corrections in the day's output folder (`auto_correct = true`).
-pub const CORRECTIONS: &str = "corrections.json";
+pub use super::config::CORRECTIONS;
 
 /// One pass's diagnosis in the day report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -110,7 +109,10 @@ fn diagnose_passes(day: &LoadedDay, plan: &Plan, patches: &Path) -> Result<Vec<P
     let out = day.config.day.out.to_path_buf();
     let mut found = Vec::new();
     for (pass, p) in day.config.passes.iter().enumerate() {
-        let pipeline = resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
+        let mut pipeline =
+            resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
+        // The template's own setting, not the units' (a `corrected.toml` carries it).
+        pipeline.config.output.allow_empty = day.template.config.output.allow_empty;
         let folder = out.join(format!("diagnosis_{}", p.name));
         let req = Request {
             patches: patches.to_path_buf(),

@@ -106,6 +106,8 @@ impl TryFrom<Vec<(usize, u64)>> for Histogram {
 pub struct SigmaOffsets {
     sigma_z: usize,
     thu95: Option<usize>,
+    /// Metres per file unit of the sigmas (1 but for a foot CRS): the statistics are in m.
+    metres_per_unit: f32,
 }
 
 impl SigmaOffsets {
@@ -116,6 +118,7 @@ impl SigmaOffsets {
         Some(SigmaOffsets {
             sigma_z: at(u.sigma_x + 2),
             thu95: u.thu95.map(at),
+            metres_per_unit: (1.0 / schema.units_per_m) as f32,
         })
     }
 }
@@ -130,7 +133,9 @@ pub struct SigmaHistograms {
 impl SigmaHistograms {
     /// Adds every record of `records` (records of `record_len` bytes).
     pub fn add_records(&mut self, records: &[u8], record_len: usize, at: SigmaOffsets) {
-        let f32_at = |r: &[u8], i: usize| f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]);
+        let f32_at = |r: &[u8], i: usize| {
+            f32::from_le_bytes([r[i], r[i + 1], r[i + 2], r[i + 3]]) * at.metres_per_unit
+        };
         for r in records.chunks_exact(record_len) {
             self.sigma_z.add(f32_at(r, at.sigma_z));
             if let Some(t) = at.thu95 {

@@ -131,6 +131,20 @@ pub fn stats_of_records(bytes: &[u8], layout: &PointLayout) -> ChunkStats {
     stats
 }
 
+/// Stores the value `v` of an extra dimension of type `data_type` at the start of `out`.
+#[inline]
+pub fn encode_extra(data_type: ExtraType, v: f64, out: &mut [u8]) {
+    match data_type {
+        ExtraType::F32 => out[..4].copy_from_slice(&(v as f32).to_le_bytes()),
+        ExtraType::F64 => out[..8].copy_from_slice(&v.to_le_bytes()),
+        // Clamped to 0..=1 (NaN is stored as 0).
+        ExtraType::FractionU8 => {
+            let q = v.clamp(0.0, 1.0) / FRACTION_SCALE;
+            out[0] = if q.is_nan() { 0 } else { round_small(q) as u8 };
+        }
+    }
+}
+
 /// Serialises `points` into format 6 records with the layout's extra bytes.
 ///
 /// Appends `points.len() * layout.record_len()` bytes to `out` (what it appended is
@@ -183,17 +197,7 @@ pub fn encode_points(
         core[22..30].copy_from_slice(&gps_time.to_le_bytes());
         for (&(data_type, at), &v) in extras.iter().zip(&p.extra) {
             let at = at - CORE_RECORD_LEN;
-            match data_type {
-                ExtraType::F32 => {
-                    extra_bytes[at..at + 4].copy_from_slice(&(v as f32).to_le_bytes())
-                }
-                ExtraType::F64 => extra_bytes[at..at + 8].copy_from_slice(&v.to_le_bytes()),
-                // Clamped to 0..=1 (NaN is stored as 0).
-                ExtraType::FractionU8 => {
-                    let q = v.clamp(0.0, 1.0) / FRACTION_SCALE;
-                    extra_bytes[at] = if q.is_nan() { 0 } else { round_small(q) as u8 };
-                }
-            }
+            encode_extra(data_type, v, &mut extra_bytes[at..]);
         }
         stats.add(counts, p.return_number, gps_time);
     }

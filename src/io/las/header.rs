@@ -132,7 +132,7 @@ fn push_vlr(
 /// LAS 1.4 R15 EXTRA_BYTES struct (192 bytes): reserved[2], data_type, options (bit 3: scale
 /// given; no no_data, min, max or offset), name[32], unused[4], no_data[3], min[3], max[3],
 /// scale[3] (f64 at 112, only the first used), offset[3], description[32]; unused fields zero.
-fn extra_bytes_descriptor(dim: &ExtraDim) -> [u8; EXTRA_BYTES_DESCRIPTOR_LEN] {
+pub(crate) fn extra_bytes_descriptor(dim: &ExtraDim) -> [u8; EXTRA_BYTES_DESCRIPTOR_LEN] {
     let mut d = [0u8; EXTRA_BYTES_DESCRIPTOR_LEN];
     d[2] = dim.data_type.data_type_code();
     if let Some(scale) = dim.data_type.scale() {

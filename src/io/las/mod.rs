@@ -20,9 +20,12 @@
 
 mod encode;
 mod header;
+pub mod inspect;
 mod layout;
+pub mod read;
 
-pub use encode::{encode_points, stats_of_records, ChunkStats, LasPoint};
+pub use encode::{encode_extra, encode_points, stats_of_records, ChunkStats, LasPoint};
+pub(crate) use header::extra_bytes_descriptor;
 pub use layout::{ExtraDim, ExtraType, GpsTimeConvention, PointLayout, FRACTION_SCALE};
 
 use crate::io::atomic::{open_in_place, AtomicFile};

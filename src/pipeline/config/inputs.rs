@@ -63,9 +63,21 @@ impl InputsConfig {
             let problem = "at least one profile file is required";
             return Err(refuse("inputs.profiles", problem));
         }
+        if let Some(week) = self.gps_week.filter(|w| *w > MAX_GPS_WEEK) {
+            let problem = format!(
+                "GPS week {week} is outside the GPS era (week 0 began on 1980-01-06; week \
+                 {MAX_GPS_WEEK} ends in 2099, and weeks in 2026 are about 2400): a week number \
+                 counts weeks, not seconds or days (the LAS creation date and adjusted GPS times \
+                 come from it)"
+            );
+            return Err(refuse("inputs.gps_week", problem));
+        }
         Ok(())
     }
 }
+
+/// The last GPS week before 2100 (weeks of 7 days from 1980-01-06).
+pub const MAX_GPS_WEEK: u32 = 6260;
 
 impl TrajectoryConfig {
     /// Checks the gap limit and the heading offset.

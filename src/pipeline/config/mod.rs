@@ -18,6 +18,7 @@ mod output;
 mod refusal;
 mod sensor;
 mod sync;
+mod tpu;
 mod uncertainty;
 
 pub use diagnose::{DiagnoseConfig, START_NAV_TAU_S};
@@ -27,6 +28,9 @@ use refusal::refuse;
 pub use refusal::Refusal;
 pub use sensor::{LatencyConfig, SensorConfig, TimeConfig, MIN_PERIOD_S};
 pub use sync::SyncConfig;
+pub use tpu::{
+    load_tpu, LoadedTpuPipeline, ScannerKind, TpuConfig, TpuInputsConfig, TpuPipelineConfig,
+};
 pub use uncertainty::UncertaintyConfig;
 
 use crate::io::config_file;
@@ -62,6 +66,9 @@ pub struct PipelineConfig {
     /// `kinescan diagnose` options (optional; command-line options win).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub diagnose: Option<DiagnoseConfig>,
+    /// `kinescan tpu` options (optional; `run` does not use them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tpu: Option<TpuConfig>,
 }
 
 /// A pipeline file loaded with its overrides applied and paths resolved.
@@ -123,6 +130,9 @@ fn check(c: &PipelineConfig) -> std::result::Result<(), Refusal> {
     }
     if let Some(d) = &c.diagnose {
         d.check()?;
+    }
+    if let Some(t) = &c.tpu {
+        t.check()?;
     }
     let t = &c.time;
     if t.model == TimeModel::Software && !t.t0_s.is_some_and(f64::is_finite) && c.sync.is_none() {

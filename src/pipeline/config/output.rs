@@ -5,8 +5,11 @@ use crate::geo::ellipsoid::Geodetic;
 use crate::geo::epsg::EpsgCrs;
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
-/// Output mapping frame.
+/// Output mapping frame: a table with a `kind` (`output.frame = { kind = "utm" }`). A bare
+/// name (`frame = "utm"`) is refused with the table to write instead (serde's own message,
+/// "expected internally tagged enum FrameConfig", says nothing a user can act on).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(remote = "Self")]
 #[serde(rename_all = "snake_case", tag = "kind", deny_unknown_fields)]
 pub enum FrameConfig {
     /// UTM with ellipsoidal height; zone from the trajectory's first record unless given.
@@ -35,6 +38,51 @@ pub enum FrameConfig {
         /// EPSG code, e.g. 2154 (RGF93 v1 / Lambert-93).
         code: u32,
     },
+}
+
+impl Serialize for FrameConfig {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        FrameConfig::serialize(self, s)
+    }
+}
+
+impl<'de> Deserialize<'de> for FrameConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Table;
+        impl<'de> serde::de::Visitor<'de> for Table {
+            type Value = FrameConfig;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a table such as { kind = \"utm\" }")
+            }
+            fn visit_str<E: serde::de::Error>(self, name: &str) -> Result<FrameConfig, E> {
+                Err(E::custom(frame_name_refusal(name)))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                map: A,
+            ) -> Result<FrameConfig, A::Error> {
+                FrameConfig::deserialize(serde::de::value::MapAccessDeserializer::new(map))
+            }
+        }
+        d.deserialize_any(Table)
+    }
+}
+
+/// The refusal of a bare frame name `frame = "<name>"`.
+fn frame_name_refusal(name: &str) -> String {
+    let kind = match name {
+        "utm" | "ecef" | "enu" | "epsg" => name,
+        _ => "utm",
+    };
+    let example = match kind {
+        "enu" => "{ kind = \"enu\", lat_deg = 48.1, lon_deg = 11.5, h_m = 520.0 }".to_string(),
+        "epsg" => "{ kind = \"epsg\", code = 25832 }".to_string(),
+        _ => format!("{{ kind = \"{kind}\" }}"),
+    };
+    format!(
+        "the frame is a table, not a name: write `frame = {example}` (kinds: utm with optional \
+         zone and north, ecef, enu with lat_deg, lon_deg, h_m, epsg with code; docs/output.md)"
+    )
 }
 
 impl FrameConfig {
@@ -132,6 +180,11 @@ pub struct OutputConfig {
     /// Accept a run that writes no point (default: such a run fails and keeps the old output).
     #[serde(default)]
     pub allow_empty: bool,
+    /// Largest share (0..1) of the returns read that may be rejected for any reason but a
+    /// missing return (no echo): above it the run fails, publishing nothing, and names the
+    /// likely cause (a wrong clock, range limits...). Default 0.05.
+    #[serde(default = "default_max_rejected_share")]
+    pub max_rejected_share: f64,
     /// File splitting.
     #[serde(default = "default_split")]
     pub split: SplitMode,
@@ -144,10 +197,18 @@ pub struct OutputConfig {
     /// Write the measured range (m) as an extra dimension `range`.
     #[serde(default = "super::yes")]
     pub range_dimension: bool,
+    /// Write the recorded mirror angle (deg, wrapped to -180..180) as an extra dimension
+    /// `mirror_angle`; the LAS scan angle is the nadir-referenced angle LAS 1.4 defines.
+    #[serde(default = "super::yes")]
+    pub mirror_angle_dimension: bool,
     /// Write each point's 0-based record index in its profile file as the extra dimension
     /// `return_index` (float64, exact to 2^53), to trace a point back to its raw return.
     #[serde(default)]
     pub return_index_dimension: bool,
+}
+
+fn default_max_rejected_share() -> f64 {
+    0.05
 }
 
 impl OutputConfig {
@@ -157,6 +218,11 @@ impl OutputConfig {
             let v = self.scale_m;
             let problem = format!("must be in (0, 0.001] m (quantisation <= 0.5 mm), got {v}");
             return Err(refuse("output.scale_m", problem));
+        }
+        if !(0.0..=1.0).contains(&self.max_rejected_share) {
+            let v = self.max_rejected_share;
+            let problem = format!("a share: must be in [0, 1] (0.05 is 5%), got {v}");
+            return Err(refuse("output.max_rejected_share", problem));
         }
         if let Some(offset) = &self.offset_m {
             require_finite(super::refusal::elements("output.offset_m", offset))?;

@@ -127,9 +127,28 @@ impl TimeConfig {
             let problem = format!("must be in [{MIN_PERIOD_S}, 1] s, got {:?}", self.period_s);
             return Err(refuse("time.period_s", problem));
         }
-        require_finite(self.t0_s.map(|t0| ("time.t0_s", t0)))
+        require_finite(self.t0_s.map(|t0| ("time.t0_s", t0)))?;
+        match self.t0_s {
+            Some(t0) if t0.abs() > MAX_SECONDS_OF_WEEK => {
+                let week = (t0 / SECONDS_PER_WEEK).floor();
+                let problem = format!(
+                    "{t0} s looks like absolute GPS time (week {week}, {:.3} s into it): \
+                     trajectory times are seconds of the GPS week, so t0_s is too (set \
+                     inputs.gps_week for the week)",
+                    t0 - week * SECONDS_PER_WEEK
+                );
+                Err(refuse("time.t0_s", problem))
+            }
+            _ => Ok(()),
+        }
     }
 }
+
+/// Seconds in a GPS week.
+const SECONDS_PER_WEEK: f64 = 604_800.0;
+/// The largest seconds-of-week time a survey may reach: one week on from its start (an SBET
+/// that crosses the end of a week keeps counting).
+const MAX_SECONDS_OF_WEEK: f64 = 2.0 * SECONDS_PER_WEEK;
 
 impl LatencyConfig {
     /// Checks both latencies are finite and below 1 s in magnitude.

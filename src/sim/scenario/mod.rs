@@ -6,10 +6,12 @@
 //! Modules: `scene`, `route` (route and vehicle), `sensors` (scanner and navigation errors);
 //! the scenario as a whole, its origin and outputs here.
 
+mod raw;
 mod route;
 mod scene;
 mod sensors;
 
+pub use raw::RawCfg;
 pub use route::{RouteCfg, StopCfg, VehicleCfg};
 pub use scene::{SceneCfg, SceneKind};
 pub use sensors::{NavErrorCfg, ScannerCfg};
@@ -57,6 +59,9 @@ pub struct Scenario {
     /// Optional outputs.
     #[serde(default)]
     pub output: OutputCfg,
+    /// Raw IMU and GNSS records (written only when the table is present).
+    #[serde(default)]
+    pub raw: Option<RawCfg>,
 }
 
 fn default_start_time() -> f64 {
@@ -129,6 +134,9 @@ impl Scenario {
         self.scanner.check(&mut c);
         self.nav_errors.check(&mut c, self.vehicle.nav_rate_hz);
         self.effects.check(&mut c);
+        if let Some(r) = &self.raw {
+            r.check(&mut c, self.vehicle.nav_rate_hz);
+        }
         if let Some(q) = self.effects.clock_drift_quadratic_per_s {
             c.test(
                 "effects.clock_drift_quadratic_per_s",
