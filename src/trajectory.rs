@@ -444,6 +444,87 @@ impl<'a> PoseCursor<'a> {
     }
 }
 
+/// Where the body rates and velocities of a [`Pose`] come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MotionSource {
+    /// The SBET's own rate and velocity fields.
+    SbetFields,
+    /// Central differences of the trajectory's attitude and position ([`derived_motion`]):
+    /// the SBET fields are empty or disagree with the attitude and position they go with.
+    Trajectory,
+}
+
+/// The SBET's body-rate fields against the rates its attitude implies, on up to `samples`
+/// record pairs spread over the file: the rms of the fields, of the derived rates, and of
+/// their difference (rad/s).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RateCheck {
+    /// Rms of the SBET rate fields (rad/s).
+    pub fields_rms_radps: f64,
+    /// Rms of the rates from consecutive attitudes (rad/s).
+    pub derived_rms_radps: f64,
+    /// Rms of fields minus derived (rad/s).
+    pub difference_rms_radps: f64,
+    /// Which the diagnosis uses: the fields unless they are empty or off by more than a
+    /// quarter of the derived rms (and 0.1 deg/s).
+    pub source: MotionSource,
+}
+
+impl Trajectory {
+    /// Compares the SBET rate fields with the rates of its own attitude (consecutive records).
+    pub fn rate_check(&self) -> RateCheck {
+        let sbet = self.sbet();
+        let n = sbet.len();
+        let step = (n / 2000).max(1);
+        let (mut f2, mut d2, mut e2, mut count) = (0.0, 0.0, 0.0, 0.0f64);
+        let mut i = 0;
+        while i + 1 < n {
+            let a = NavSample::from_sbet(&sbet.record(i));
+            let b = NavSample::from_sbet(&sbet.record(i + 1));
+            let dt = b.t_s - a.t_s;
+            if dt > 0.0 {
+                let derived = (a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / dt;
+                let fields = (a.omega_b_radps + b.omega_b_radps) / 2.0;
+                f2 += fields.norm_squared();
+                d2 += derived.norm_squared();
+                e2 += (fields - derived).norm_squared();
+                count += 1.0;
+            }
+            i += step;
+        }
+        let rms = |x: f64| (x / count.max(1.0)).sqrt();
+        let (fields, derived, diff) = (rms(f2), rms(d2), rms(e2));
+        let floor = 0.1f64.to_radians();
+        let source = if diff > (0.25 * derived).max(floor) {
+            MotionSource::Trajectory
+        } else {
+            MotionSource::SbetFields
+        };
+        RateCheck {
+            fields_rms_radps: fields,
+            derived_rms_radps: derived,
+            difference_rms_radps: diff,
+            source,
+        }
+    }
+}
+
+/// Body angular rate (rad/s, at `t + tau`) and NED velocity (m/s, at `t` + position latency)
+/// from the trajectory's own attitude and position, by central differences over `h_s` either
+/// side: for an SBET whose rate or velocity fields are empty or disagree with it.
+pub fn derived_motion(
+    cursor: &mut PoseCursor,
+    t: f64,
+    h_s: f64,
+) -> Result<(Vector3<f64>, Vector3<f64>), NavGap> {
+    let (a, b) = (cursor.at(t - h_s)?, cursor.at(t + h_s)?);
+    let omega_b = (a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / (2.0 * h_s);
+    let r_n_to_e = crate::geo::ellipsoid::r_n_to_e(a.nav.lat_rad, a.nav.lon_rad);
+    let v_n = r_n_to_e.transpose() * (b.nav.r_e_m - a.nav.r_e_m) / (2.0 * h_s);
+    Ok((omega_b, v_n))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -476,6 +557,63 @@ mod tests {
     }
 
     /// The heading offset adds to the true heading of every interpolated attitude and leaves
+    /// A turn at 0.5 rad/s with roll vibrating at 3 Hz: with the rate fields filled the SBET's
+    /// own are used; written as zeros (some exports leave them empty) the rates come from the
+    /// attitude, and they match the true rates to the central difference's error.
+    #[test]
+    fn empty_rate_fields_are_replaced_by_the_attitude_s_rates() {
+        let dir = std::env::temp_dir().join(format!("kinescan_rates_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (rate_hz, yaw_rate, vib, f_hz) = (200.0, 0.5, 0.3f64.to_radians(), 3.0);
+        let write = |name: &str, filled: bool| {
+            let path = dir.join(name);
+            let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(&path).unwrap();
+            for k in 0..2000 {
+                let t = k as f64 / rate_hz;
+                let w_roll = std::f64::consts::TAU * f_hz;
+                let roll = vib * (w_roll * t).sin();
+                let roll_rate = vib * w_roll * (w_roll * t).cos();
+                // Body rates of R = Rz(h) Rx(roll): p = roll rate, q = h' sin roll, r = h' cos roll.
+                let rec = SbetRecord {
+                    time_s: t,
+                    lat_rad: 0.8,
+                    roll_rad: roll,
+                    platform_heading_rad: yaw_rate * t,
+                    rate_x_radps: if filled { roll_rate } else { 0.0 },
+                    rate_y_radps: if filled { yaw_rate * roll.sin() } else { 0.0 },
+                    rate_z_radps: if filled { yaw_rate * roll.cos() } else { 0.0 },
+                    ..Default::default()
+                };
+                w.push(&rec).unwrap();
+            }
+            w.finish().unwrap();
+            Trajectory::open(&path, None, TrajectoryOptions::default()).unwrap()
+        };
+        let filled = write("filled.sbet", true).rate_check();
+        assert_eq!(filled.source, MotionSource::SbetFields, "{filled:?}");
+        let empty_traj = write("empty.sbet", false);
+        let empty = empty_traj.rate_check();
+        assert_eq!(empty.source, MotionSource::Trajectory, "{empty:?}");
+        let mut cursor = PoseCursor::new(&empty_traj, 0.0, 0.0);
+        let t = 3.0;
+        let (omega, _) = derived_motion(&mut cursor, t, 1.0 / rate_hz).unwrap();
+        let w_roll = std::f64::consts::TAU * f_hz;
+        let roll = vib * (w_roll * t).sin();
+        let truth = Vector3::new(
+            vib * w_roll * (w_roll * t).cos(),
+            yaw_rate * roll.sin(),
+            yaw_rate * roll.cos(),
+        );
+        // Central difference over 10 ms of a 3 Hz vibration: relative error (w h)^2 / 6 = 6e-4
+        // of the 0.1 rad/s vibration rate, plus the slerp's second order.
+        let err = (omega - truth).norm();
+        assert!(
+            err < 2e-4,
+            "derived {omega:?} vs true {truth:?}: {err:e} rad/s"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     /// roll and pitch alone.
     #[test]
     fn heading_offset_adds_to_the_true_heading() {

@@ -30,6 +30,19 @@ for when in ("before", "after"):
 assert set(d["estimate"]) == set(d["effects"]) == set(d["sigma"]), d
 if d["verdict"] != "effect":
     assert d["effects"] == [] and d["set"] == [], d
+# docs/conventions.md §8: "detectable" for EVERY catalogue name, "nuisance" with its source.
+CATALOGUE = {
+    "attitude_latency_s", "position_latency_s", "clock_offset_s", "clock_drift_ppm",
+    "boresight_x_deg", "boresight_y_deg", "boresight_z_deg", "lever_arm_x_m", "lever_arm_y_m",
+    "lever_arm_z_m", "range_zero_m", "range_scale_ppm", "encoder_offset_deg", "cone_deg",
+    "heading_offset_deg",
+}
+assert set(d["detectable"]) == CATALOGUE, sorted(d["detectable"])
+for name, v in d["detectable"].items():
+    assert v is None or (isinstance(v, float) and v > 0), (name, v)
+for k in ("position_tau_s", "attitude_tau_s", "position_scale", "attitude_scale"):
+    p = d["nuisance"][k]
+    assert p["source"] in ("estimated", "configured") and p["value"] > 0, (k, p)
 assert (out / "summary.md").read_text().startswith("# Diagnosis of ")
 for png in d["plots"]:
     assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png

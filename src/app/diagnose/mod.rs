@@ -13,11 +13,14 @@ pub mod fit;
 pub mod locate;
 pub mod metrics;
 pub mod model;
+pub mod nuisance;
 pub mod observability;
 pub mod observe;
 pub mod plots;
+pub mod power;
 pub mod report;
 pub mod reprocess;
+pub mod screen;
 pub mod select;
 
 use crate::io::publish::publish_folder;
@@ -80,6 +83,51 @@ struct Statistics {
     model_free: Option<(report::ModelFreeReport, report::GapMetrics)>,
     /// Normalised residual of every observation under the null model.
     normalised: Vec<f64>,
+    /// Smallest size of every catalogue effect named with 90% probability.
+    detectable: Vec<(model::Effect, Option<f64>)>,
+}
+
+/// What the statistics learned from the survey before testing it: the returns set aside as
+/// foreign, and the navigation error model.
+struct Learned {
+    screening: screen::Screening,
+    nuisance: nuisance::Nuisance,
+}
+
+impl Learned {
+    /// Screens `set` for foreign returns and estimates the navigation error model on its fit
+    /// references; returns the set the statistics run on (screened, model applied).
+    fn from(
+        set: &model::ObservationSet,
+        cfg: &DiagnoseConfig,
+    ) -> Result<(Self, model::ObservationSet)> {
+        let (screened, screening) = screen::screen(set, cfg.max_foreign_share);
+        let split = fit::split(&screened, cfg.seed)?;
+        let held = nuisance::Held {
+            position_tau_s: cfg.nav_position_tau_s,
+            attitude_tau_s: cfg.nav_attitude_tau_s,
+            position_scale: cfg.nav_position_scale,
+            attitude_scale: cfg.nav_attitude_scale,
+        };
+        let start = screened
+            .nav_tau_s
+            .unwrap_or(crate::pipeline::config::START_NAV_TAU_S);
+        let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
+        let applied = nuisance::apply(&screened, &nuisance);
+        Ok((
+            Learned {
+                screening,
+                nuisance,
+            },
+            applied,
+        ))
+    }
+
+    /// The same screening and navigation model on a survey observed again.
+    fn apply(&self, set: &model::ObservationSet) -> model::ObservationSet {
+        let (screened, _) = screen::screen(set, self.screening.max_foreign_share);
+        nuisance::apply(&screened, &self.nuisance)
+    }
 }
 
 /// Covariates shown in plots (the leading ones of the tests).
@@ -92,9 +140,10 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
     let cfg = p.config.diagnose.clone().unwrap_or_default();
     check_collisions(p, req)?;
     let refs = observe::References::read(&req.patches, req.control_points.as_deref())?;
-    let observed = observe::observe(p, &refs, &cfg)?;
-    let set = &observed.set;
-    let stats = statistics(set, &cfg)?;
+    let mut observed = observe::observe(p, &refs, &cfg)?;
+    let (learned, set) = Learned::from(&observed.set, &cfg)?;
+    observed.set = set;
+    let stats = statistics(&observed.set, &cfg)?;
     let names = output_names();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
     publish_folder(
@@ -102,7 +151,7 @@ pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
         "diagnosis",
         report::DIAGNOSIS_JSON,
         &names,
-        |dir| write_outputs(p, req, &refs, observed, stats, dir),
+        |dir| write_outputs(p, req, &refs, (observed, learned), stats, dir),
     )
 }
 
@@ -112,7 +161,7 @@ fn write_outputs(
     p: &LoadedPipeline,
     req: &Request,
     refs: &observe::References,
-    observed: observe::Observed,
+    (observed, learned): (observe::Observed, Learned),
     stats: Statistics,
     dir: &Path,
 ) -> Result<report::Diagnosis> {
@@ -127,9 +176,9 @@ fn write_outputs(
         (report::Verdict::Effect, _) => {
             let lines = reprocess::set_lines(&p.config, &stats.applied)?;
             let corrected = reprocess::corrected(p, &lines, &req.out_dir)?;
-            let again = observe::observe(&corrected, refs, &cfg)?;
-            let held = references_of(&again.set, &held_out_ids);
-            let (after, normalised) = gap_of(&again.set, &held)?;
+            let again = learned.apply(&observe::observe(&corrected, refs, &cfg)?.set);
+            let held = references_of(&again, &held_out_ids);
+            let (after, normalised) = gap_of(&again, &held)?;
             reprocess::write_pipeline(
                 &corrected.config,
                 &p.path,
@@ -197,6 +246,14 @@ fn write_outputs(
         candidates: stats.candidates,
         covariate_tests: stats.covariate_tests,
         model_free: stats.model_free.map(|(m, _)| m),
+        detectable: stats
+            .detectable
+            .iter()
+            .map(|(e, d)| (e.name().to_string(), *d))
+            .collect(),
+        nuisance: learned.nuisance,
+        rates: observed.rates,
+        foreign: learned.screening,
         counts: observed.counts,
         plots: plot_files,
     };
@@ -351,6 +408,14 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
         located_in: a.located_in.iter().map(|c| c.name().to_string()).collect(),
         model_free,
         normalised: locate::normalised_residuals(set, None),
+        detectable: {
+            let (fit_n, held_n) = (
+                fit::Normals::of(set, &a.split.fit)?,
+                fit::Normals::of(set, &a.split.held_out)?,
+            );
+            let g = obs.groups.len();
+            power::detectable(&fit_n, &held_n, cfg.alpha, g + g * (g - 1) / 2)
+        },
     })
 }
 

@@ -163,6 +163,19 @@ pub struct Diagnosis {
     pub covariate_tests: Vec<CovariateReport>,
     /// Extra: the model-free correction (verdict `unexplained`).
     pub model_free: Option<ModelFreeReport>,
+    /// For every catalogue name: the smallest |size| (the name's unit) this survey would name
+    /// with 90% probability at the verdict's test level (docs/diagnosis.md, "Power"); null
+    /// for an effect without signature on these references.
+    pub detectable: BTreeMap<String, Option<f64>>,
+    /// The navigation error model the statistics used and how it was obtained
+    /// (docs/diagnosis.md, "The nuisance").
+    pub nuisance: crate::app::diagnose::nuisance::Nuisance,
+    /// Extra: the SBET's body-rate fields against the rates of its own attitude, and which the
+    /// signatures used (`sbet_fields`, or `trajectory` when the fields are empty or disagree).
+    pub rates: crate::trajectory::RateCheck,
+    /// Extra: returns set aside as foreign to their reference, by reference
+    /// (docs/diagnosis.md, "Foreign returns").
+    pub foreign: crate::app::diagnose::screen::Screening,
     /// Extra: what happened to every return.
     pub counts: ObserveCounts,
     /// Extra: PNG files written beside the report.
@@ -187,6 +200,72 @@ impl Diagnosis {
             .map_err(|e| Error::Invalid(format!("diagnosis JSON: {e}")))?;
         write_atomic(&dir.join(DIAGNOSIS_JSON), format!("{json}\n").as_bytes())?;
         write_atomic(&dir.join(SUMMARY_MD), self.summary(pipeline).as_bytes())
+    }
+
+    /// The navigation error model used, and whence.
+    fn write_nuisance(&self, s: &mut String) {
+        let n = &self.nuisance;
+        let p = |x: &crate::app::diagnose::nuisance::Parameter, unit: &str| match x.sigma {
+            Some(sd) => format!("{:.3} +- {:.3}{unit} ({})", x.value, sd, x.source),
+            None => format!("{:.3}{unit} ({})", x.value, x.source),
+        };
+        let _ = writeln!(
+            s,
+            "## Navigation error model
+"
+        );
+        let _ = writeln!(
+            s,
+            "Correlation times: position {}, attitude {}; true / SMRMSG sigma: position {}, \
+             attitude {} (diagnosis.json `nuisance`).\n",
+            p(&n.position_tau_s, " s"),
+            p(&n.attitude_tau_s, " s"),
+            p(&n.position_scale, ""),
+            p(&n.attitude_scale, "")
+        );
+    }
+
+    /// "No effect larger than ...": what this survey would have named with 90% probability.
+    fn write_detectable(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "## What this survey could have found
+
+No catalogue effect is named; each would \
+             have been named with 90% probability from this size (diagnosis.json `detectable`):\n"
+        );
+        let _ = writeln!(s, "| effect | detectable from |\n|---|---:|");
+        for (name, d) in &self.detectable {
+            let v = d.map_or("no signature here".to_string(), |v| format!("{v:.3e}"));
+            let _ = writeln!(s, "| {name} | {v} |");
+        }
+        s.push('\n');
+    }
+
+    /// Returns set aside as foreign to their reference, by reference.
+    fn write_foreign(&self, s: &mut String) {
+        let f = &self.foreign;
+        let _ = writeln!(
+            s,
+            "\nForeign returns (off their reference's surface by more than 6 sigma: people, cars, \
+             objects in front, edges): {} set aside; {} on references left out as mostly foreign{}.",
+            f.set_aside,
+            f.on_unused_references,
+            if f.unused_references.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", f.unused_references.join(", "))
+            }
+        );
+        if !f.by_reference.is_empty() {
+            let _ = writeln!(
+                s,
+                "\n| reference | observations | set aside |\n|---|---:|---:|"
+            );
+            for (id, r) in &f.by_reference {
+                let _ = writeln!(s, "| {id} | {} | {} |", r.observations, r.set_aside);
+            }
+        }
     }
 
     /// The one-line verdict.
@@ -268,6 +347,10 @@ impl Diagnosis {
             s,
             "\nAn honest model gives chi2/dof near 1 and 95% coverage near 95%.\n"
         );
+        self.write_nuisance(&mut s);
+        if self.verdict == Verdict::None {
+            self.write_detectable(&mut s);
+        }
         if !self.covariate_tests.is_empty() {
             let _ = writeln!(s, "## Where the gap lies\n");
             let _ = writeln!(s, "| covariate | p-value |\n|---|---:|");
@@ -320,6 +403,21 @@ impl Diagnosis {
             c.rejected.values().sum::<u64>(),
             self.split.fit.len(),
             self.split.held_out.len()
+        );
+        self.write_foreign(&mut s);
+        let r = &self.rates;
+        let _ = writeln!(
+            s,
+            "\nBody rates and velocities for the timing signatures: {} (SBET rate fields rms \
+             {:.3} deg/s, rates of its attitude {:.3} deg/s, difference {:.3} deg/s).",
+            match r.source {
+                crate::trajectory::MotionSource::SbetFields => "the SBET's own fields",
+                crate::trajectory::MotionSource::Trajectory =>
+                    "derived from the trajectory's attitude and position (the SBET fields are empty or disagree)",
+            },
+            r.fields_rms_radps.to_degrees(),
+            r.derived_rms_radps.to_degrees(),
+            r.difference_rms_radps.to_degrees()
         );
         if c.control_points_read > 0 {
             let _ = writeln!(

@@ -32,12 +32,23 @@ pub struct DiagnoseConfig {
     #[serde(default = "default_max_visit_s")]
     pub max_visit_s: f64,
     /// Correlation time of the INS position errors (s): first-order Gauss-Markov in time,
-    /// within and between visits (docs/diagnosis.md, "The residual model").
-    #[serde(default = "default_nav_position_tau_s")]
-    pub nav_position_tau_s: f64,
-    /// Correlation time of the INS attitude errors (s).
-    #[serde(default = "default_nav_attitude_tau_s")]
-    pub nav_attitude_tau_s: f64,
+    /// within and between visits (docs/diagnosis.md, "The residual model"). Absent: estimated
+    /// from the survey (docs/diagnosis.md, "The nuisance").
+    #[serde(default)]
+    pub nav_position_tau_s: Option<f64>,
+    /// Correlation time of the INS attitude errors (s). Absent: estimated.
+    #[serde(default)]
+    pub nav_attitude_tau_s: Option<f64>,
+    /// True / SMRMSG sigma of the INS position errors. Absent: estimated.
+    #[serde(default)]
+    pub nav_position_scale: Option<f64>,
+    /// True / SMRMSG sigma of the INS attitude errors. Absent: estimated.
+    #[serde(default)]
+    pub nav_attitude_scale: Option<f64>,
+    /// A reference with more than this share of its returns set aside as foreign is reported
+    /// and not used (docs/diagnosis.md, "Foreign returns").
+    #[serde(default = "default_max_foreign_share")]
+    pub max_foreign_share: f64,
     /// Visits with fewer returns are left out.
     #[serde(default = "default_min_per_visit")]
     pub min_per_visit: usize,
@@ -84,11 +95,10 @@ fn default_visit_gap_s() -> f64 {
 fn default_max_visit_s() -> f64 {
     5.0
 }
-fn default_nav_position_tau_s() -> f64 {
-    60.0
-}
-fn default_nav_attitude_tau_s() -> f64 {
-    30.0
+/// Where the search for the correlation times starts when they are estimated (s).
+pub const START_NAV_TAU_S: [f64; 2] = [60.0, 30.0];
+fn default_max_foreign_share() -> f64 {
+    0.25
 }
 fn default_min_per_visit() -> usize {
     20
@@ -122,17 +132,29 @@ impl DiagnoseConfig {
             ("diagnose.plane_tolerance_m", self.plane_tolerance_m),
             ("diagnose.visit_gap_s", self.visit_gap_s),
             ("diagnose.max_visit_s", self.max_visit_s),
-            ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
-            ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
             ("diagnose.target_radius_m", self.target_radius_m),
             ("diagnose.target_flatness_m", self.target_flatness_m),
         ];
         require_positive(positive)?;
+        let optional = [
+            ("diagnose.nav_position_tau_s", self.nav_position_tau_s),
+            ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
+            ("diagnose.nav_position_scale", self.nav_position_scale),
+            ("diagnose.nav_attitude_scale", self.nav_attitude_scale),
+        ];
+        require_positive(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))?;
         if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
             let v = self.edge_margin_m;
             return Err(refuse(
                 "diagnose.edge_margin_m",
                 format!("must be >= 0, got {v}"),
+            ));
+        }
+        if !(self.max_foreign_share > 0.0 && self.max_foreign_share <= 1.0) {
+            let v = self.max_foreign_share;
+            return Err(refuse(
+                "diagnose.max_foreign_share",
+                format!("must be in (0, 1], got {v}"),
             ));
         }
         if self.min_per_visit < 2 || self.max_per_visit < self.min_per_visit {

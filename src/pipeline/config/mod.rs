@@ -21,7 +21,7 @@ mod sync;
 mod tpu;
 mod uncertainty;
 
-pub use diagnose::DiagnoseConfig;
+pub use diagnose::{DiagnoseConfig, START_NAV_TAU_S};
 pub use inputs::{InputsConfig, TrajectoryConfig};
 pub use output::{FrameConfig, OutputConfig, OutputFormat, SplitMode, Strictness};
 use refusal::refuse;

@@ -350,6 +350,18 @@ impl ObservationSet {
         members
     }
 
+    /// The same set without any observation (visits, references, passes and correlation
+    /// times kept).
+    pub(crate) fn clone_without_observations(&self) -> ObservationSet {
+        ObservationSet {
+            observations: Vec::new(),
+            visits: self.visits.clone(),
+            reference_ids: self.reference_ids.clone(),
+            passes: self.passes,
+            nav_tau_s: self.nav_tau_s,
+        }
+    }
+
     /// Reference indices that have at least one observation, ascending.
     pub fn observed_references(&self) -> Vec<usize> {
         let mut seen = vec![false; self.reference_ids.len()];

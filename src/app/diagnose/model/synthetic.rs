@@ -24,6 +24,9 @@ pub struct Scenario {
     /// Navigation errors correlated across visits (Gauss-Markov, position and attitude
     /// correlation times, s); also what the drawn set declares.
     pub nav_tau_s: Option<[f64; 2]>,
+    /// True / declared sigma of the navigation position and attitude errors (the SMRMSG
+    /// misstating them).
+    pub nav_scale: [f64; 2],
 }
 
 impl Default for Scenario {
@@ -39,6 +42,7 @@ impl Default for Scenario {
             twin: None,
             range_cyclic_m: 0.0,
             nav_tau_s: None,
+            nav_scale: [1.0, 1.0],
         }
     }
 }
@@ -159,7 +163,12 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
 /// Navigation errors at every return from one Gauss-Markov process per component, sampled
 /// exactly at the returns' times in time order (unit-variance AR(1) scaled by the sigma of
 /// the return's visit): continuous within and between visits, as the simulator's.
-fn gauss_markov(set: &ObservationSet, tau: [f64; 2], rng: &mut ChaCha8Rng) -> Vec<[f64; 6]> {
+fn gauss_markov(
+    set: &ObservationSet,
+    tau: [f64; 2],
+    scale: [f64; 2],
+    rng: &mut ChaCha8Rng,
+) -> Vec<[f64; 6]> {
     let mut order: Vec<usize> = (0..set.observations.len()).collect();
     let time = |i: usize| set.observations[i].covariates.time_s;
     order.sort_by(|&a, &b| time(a).total_cmp(&time(b)).then(a.cmp(&b)));
@@ -177,7 +186,7 @@ fn gauss_markov(set: &ObservationSet, tau: [f64; 2], rng: &mut ChaCha8Rng) -> Ve
                 }
                 None => e,
             };
-            z[i][k] = p[k][k].sqrt() * *uk;
+            z[i][k] = scale[k / 3] * p[k][k].sqrt() * *uk;
         }
         previous = Some(time(i));
     }
@@ -193,14 +202,18 @@ pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
             let per_visit: Vec<[f64; 6]> = set
                 .visits
                 .iter()
-                .map(|v| std::array::from_fn(|k| v.nav_cov[k][k].sqrt() * normal(&mut rng)))
+                .map(|v| {
+                    std::array::from_fn(|k| {
+                        s.nav_scale[k / 3] * v.nav_cov[k][k].sqrt() * normal(&mut rng)
+                    })
+                })
                 .collect();
             set.observations
                 .iter()
                 .map(|o| per_visit[o.visit])
                 .collect()
         }
-        Some(tau) => gauss_markov(set, tau, &mut rng),
+        Some(tau) => gauss_markov(set, tau, s.nav_scale, &mut rng),
     };
     for (o, z) in set.observations.iter_mut().zip(&z) {
         let systematic: f64 = s

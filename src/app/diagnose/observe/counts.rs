@@ -54,4 +54,6 @@ pub struct Observed {
     pub set: ObservationSet,
     /// What happened to every return.
     pub counts: ObserveCounts,
+    /// The SBET's rate fields against its attitude, and which the signatures used.
+    pub rates: crate::trajectory::RateCheck,
 }

@@ -21,11 +21,11 @@ use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::{read_patches, PlanarPatch};
 use crate::io::points::{read_control_points, ControlPoint};
 use crate::io::profiles::{ProfileFile, RawReturn};
-use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel};
+use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel, START_NAV_TAU_S};
 use crate::pipeline::prepare::{open_profiles, PreparedInput};
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
-use crate::trajectory::{PoseCursor, Trajectory};
+use crate::trajectory::{derived_motion, MotionSource, PoseCursor, Trajectory};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -118,6 +118,7 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         ..Default::default()
     };
     let (mut hits, mut target_hits) = (Vec::new(), Vec::new());
+    let rates = traj.rate_check();
     for (pass, input) in files.iter().enumerate() {
         let model = ReturnModel::new(p, &traj, &input.file)?;
         let found = first_pass(&model, &input.file, (&index, &targets), &mut counts);
@@ -150,7 +151,7 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
     counts.patches_without_observations = without(&mut refs.patches.iter().map(|p| &p.id));
     counts.control_points_without_observations =
         without(&mut refs.control_points.iter().map(|c| &c.id));
-    Ok(Observed { set, counts })
+    Ok(Observed { set, counts, rates })
 }
 
 /// Refuses references no return reaches: patches none lies on, control points (when given)
@@ -217,6 +218,9 @@ struct ReturnModel<'a> {
     white: WhiteSigmas,
     /// Correlation times of the INS position and attitude errors (s).
     nav_tau_s: [f64; 2],
+    /// Half-step (s) of the central differences that replace the SBET's rate and velocity
+    /// fields when they are empty or disagree with its attitude; `None`: the fields are used.
+    derived_motion_h_s: Option<f64>,
 }
 
 /// The scanner noise sigmas (`[uncertainty]`) that make the white part of a residual's
@@ -240,6 +244,7 @@ struct Located {
 
 impl<'a> ReturnModel<'a> {
     fn new(p: &LoadedPipeline, traj: &'a Trajectory, file: &ProfileFile) -> Result<Self> {
+        let rates = traj.rate_check();
         let c = &p.config;
         let alpha_column = file.columns().alpha;
         if c.time.model != TimeModel::Software && !file.columns().time {
@@ -262,13 +267,16 @@ impl<'a> ReturnModel<'a> {
             attitude_latency_s: c.latency.attitude_s,
             position_latency_s: c.latency.position_s,
             range_limits_m: (c.sensor.min_range_m, c.sensor.max_range_m),
-            nav_tau_s: c.diagnose.as_ref().map_or_else(
-                || {
-                    let d = DiagnoseConfig::default();
-                    [d.nav_position_tau_s, d.nav_attitude_tau_s]
-                },
-                |d| [d.nav_position_tau_s, d.nav_attitude_tau_s],
-            ),
+            derived_motion_h_s: (rates.source == MotionSource::Trajectory).then(|| {
+                let (t0, t1) = traj.span_s();
+                (t1 - t0) / traj.sbet().len().max(2) as f64
+            }),
+            nav_tau_s: c.diagnose.as_ref().map_or(START_NAV_TAU_S, |d| {
+                [
+                    d.nav_position_tau_s.unwrap_or(START_NAV_TAU_S[0]),
+                    d.nav_attitude_tau_s.unwrap_or(START_NAV_TAU_S[1]),
+                ]
+            }),
             white: c.uncertainty.as_ref().map_or(
                 WhiteSigmas {
                     alpha_rad: 0.0,
@@ -339,7 +347,11 @@ impl<'a> ReturnModel<'a> {
             return Err(RejectReason::RangeOutOfLimits);
         }
         let (t_s, dt_dclock) = self.time_of(r);
-        let pose = cursor.at(t_s).map_err(RejectReason::from)?;
+        let mut pose = cursor.at(t_s).map_err(RejectReason::from)?;
+        if let Some(h) = self.derived_motion_h_s {
+            let (omega_b, v_n) = derived_motion(cursor, t_s, h).map_err(RejectReason::from)?;
+            (pose.omega_b_radps, pose.nav.v_n_mps) = (omega_b, v_n);
+        }
         let terms = ReturnTerms::of_pose(
             &pose,
             &self.sensor,

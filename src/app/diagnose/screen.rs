@@ -1,0 +1,261 @@
+//! Returns that do not belong to their reference's plane (docs/diagnosis.md, "Foreign
+//! returns"): a person, a car, a window frame, a pole in front of a facade, a kerb or a cross
+//! wall meeting a patch inside its rectangle, mixed returns at an edge. They lie within the
+//! plane tolerance but centimetres to decimetres off the plane, against millimetres of scanner
+//! noise, and a few hundred of them decide a chi-square over a million returns.
+//!
+//! Within one visit everything the model has (the navigation error, any catalogue effect) is a
+//! smooth function of where the return lies on the patch, which a visit's time and mirror angle
+//! span. Each visit's residuals are fitted by a quadratic surface in (time, mirror angle),
+//! robustly (least squares on the returns within [`KEEP`] sigmas of the previous surface,
+//! started from the median and the spread of the smaller departures); a return is set aside when it departs from that surface by more than
+//! [`THRESHOLD`] times the larger of its own scanner sigma and the robust spread of the visit
+//! about the surface (so a surface that misses real structure widens the test instead of
+//! cutting into the data). A reference with more than `max_foreign_share` of its returns set
+//! aside, or spread about its surfaces by more than [`MAX_SPREAD`] scanner sigmas, is not a
+//! reference: it is reported and left out.
+
+use super::model::ObservationSet;
+use nalgebra::{DMatrix, DVector};
+use std::collections::BTreeMap;
+
+/// Departure (in sigmas) beyond which a return is foreign: a Gaussian return passes with
+/// probability 1 - 2e-9, so over 3e7 returns fewer than one is set aside by chance.
+pub const THRESHOLD: f64 = 6.0;
+/// Visits with fewer returns are not screened (control-point centroids, short runs).
+const MIN_SCREENED: usize = 8;
+/// Iterations of the reweighted fit.
+const ITERATIONS: usize = 8;
+/// The surface is fitted by least squares to the returns within this many sigmas of the last
+/// one (a hard-rejection M-estimator): the foreign returns, far beyond it, have no weight even
+/// when a third of a visit is foreign, and the 0.05% of genuine returns beyond it change the
+/// surface by nothing that matters.
+const KEEP: f64 = 3.5;
+
+/// A reference whose visits spread about their surfaces by more than this many scanner sigmas
+/// (median over its visits) is not a plane the model describes: when foreign returns are as
+/// many as its own (vegetation, a parked car), the surface cannot tell them apart, and its
+/// spread says so.
+const MAX_SPREAD: f64 = 3.0;
+
+/// What screening set aside, by reference.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct Screening {
+    /// Observations set aside as foreign (on references still used).
+    pub set_aside: usize,
+    /// Observations of references left out as mostly foreign.
+    pub on_unused_references: usize,
+    /// Per reference id with at least one return set aside: its observations and how many
+    /// were set aside.
+    pub by_reference: BTreeMap<String, ReferenceScreen>,
+    /// References left out: more than `max_foreign_share` of their returns set aside.
+    pub unused_references: Vec<String>,
+    /// The share above which a reference is left out.
+    pub max_foreign_share: f64,
+}
+
+/// One reference's screening.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct ReferenceScreen {
+    /// Its observations before screening.
+    pub observations: usize,
+    /// Set aside as foreign.
+    pub set_aside: usize,
+}
+
+/// `set` without its foreign returns and without mostly foreign references.
+pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, Screening) {
+    let members = set.visit_members();
+    let mut foreign = vec![false; set.observations.len()];
+    let mut spreads = vec![Vec::new(); set.reference_ids.len()];
+    for m in members.iter().filter(|m| m.len() >= MIN_SCREENED) {
+        let (flags, spread) = flag_visit(set, m);
+        for (&i, f) in m.iter().zip(flags) {
+            foreign[i] = f;
+        }
+        spreads[set.observations[m[0]].reference].push(spread);
+    }
+    let mut per_ref = vec![ReferenceScreen::default(); set.reference_ids.len()];
+    for (o, &f) in set.observations.iter().zip(&foreign) {
+        per_ref[o.reference].observations += 1;
+        per_ref[o.reference].set_aside += usize::from(f);
+    }
+    let unused: Vec<bool> = per_ref
+        .iter()
+        .zip(spreads)
+        .map(|(r, s)| {
+            let not_plane = !s.is_empty() && median(s) > MAX_SPREAD;
+            not_plane || r.set_aside as f64 > max_foreign_share * r.observations as f64
+        })
+        .collect();
+    let mut out = ObservationSet {
+        observations: Vec::with_capacity(set.observations.len()),
+        ..set.clone_without_observations()
+    };
+    let mut report = Screening {
+        max_foreign_share,
+        ..Default::default()
+    };
+    for (o, &f) in set.observations.iter().zip(&foreign) {
+        if unused[o.reference] {
+            report.on_unused_references += 1;
+        } else if f {
+            report.set_aside += 1;
+        } else {
+            out.observations.push(o.clone());
+        }
+    }
+    for (r, s) in per_ref.iter().enumerate() {
+        if s.set_aside > 0 {
+            report.by_reference.insert(set.reference_ids[r].clone(), *s);
+        }
+        if unused[r] {
+            report.unused_references.push(set.reference_ids[r].clone());
+        }
+    }
+    (out, report)
+}
+
+/// The returns of one visit (indices `m`) that depart from the visit's robust surface, and the
+/// robust spread about it in units of the scanner sigma.
+fn flag_visit(set: &ObservationSet, m: &[usize]) -> (Vec<bool>, f64) {
+    let obs = |i: usize| &set.observations[i];
+    let span = |f: &dyn Fn(usize) -> f64| {
+        let (lo, hi) = m
+            .iter()
+            .map(|&i| f(i))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+        ((lo + hi) / 2.0, ((hi - lo) / 2.0).max(1e-9))
+    };
+    let time = |i: usize| obs(i).covariates.time_s;
+    let beta = |i: usize| obs(i).covariates.beta_deg;
+    let (tc, ts) = span(&time);
+    let (bc, bs) = span(&beta);
+    let x = DMatrix::from_fn(m.len(), 6, |row, col| {
+        let (t, b) = ((time(m[row]) - tc) / ts, (beta(m[row]) - bc) / bs);
+        [1.0, t, b, t * t, b * b, t * b][col]
+    });
+    let r = DVector::from_fn(m.len(), |row, _| obs(m[row]).residual_m);
+    let sigma = DVector::from_fn(m.len(), |row, _| obs(m[row]).var_white_m2.sqrt());
+    let floor = median(sigma.iter().copied().collect());
+    // Start: the median level, its spread from the smaller departures.
+    let med = median(r.iter().copied().collect());
+    let mut e = r.map(|v| v - med);
+    let mut scale = lower_quartile_scale(&e, floor);
+    for _ in 0..ITERATIONS {
+        let w = e.map(|v| if v.abs() < KEEP * scale { 1.0 } else { 0.0 });
+        let xw = DMatrix::from_fn(m.len(), 6, |i, j| x[(i, j)] * w[i]);
+        let Some(coef) = (xw.transpose() * &x)
+            .cholesky()
+            .map(|c| c.solve(&(xw.transpose() * &r)))
+        else {
+            break;
+        };
+        e = &r - &x * coef;
+        // The spread of the returns the fit kept.
+        let inliers: Vec<f64> = e
+            .iter()
+            .zip(w.iter())
+            .filter(|(_, &w)| w > 0.0)
+            .map(|(v, _)| v.abs())
+            .collect();
+        if inliers.len() > 6 {
+            scale = (1.4826 * median(inliers)).max(floor);
+        }
+    }
+    let flags = e
+        .iter()
+        .zip(sigma.iter())
+        .map(|(&v, &s)| v.abs() > THRESHOLD * s.max(scale))
+        .collect();
+    (flags, scale / floor)
+}
+
+/// The spread of `e` about 0 from its smaller absolute values, at least `floor`: the lower
+/// quartile of `|e|` over 0.3186 (its value for a unit normal). Foreign returns lie far out;
+/// up to three quarters of a visit can be foreign before they reach it (the median absolute
+/// deviation already grows with a third).
+fn lower_quartile_scale(e: &DVector<f64>, floor: f64) -> f64 {
+    (quantile(e.iter().map(|v| v.abs()).collect(), 0.25) / 0.3186).max(floor)
+}
+
+fn median(v: Vec<f64>) -> f64 {
+    quantile(v, 0.5)
+}
+
+/// The `q` quantile (nearest rank) of `v`.
+fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[((v.len() - 1) as f64 * q).round() as usize]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::model::synthetic::{draw, Scenario};
+    use super::*;
+
+    /// `diagnose.max_foreign_share`'s default.
+    const MAX_SHARE: f64 = 0.25;
+
+    /// Without foreign returns nothing is set aside; with 1% of returns moved 40-150 mm off
+    /// the plane (10 mm scanner noise), every one of them is set aside and no other. (The
+    /// synthetic signatures are random per return, not smooth over a patch, so effects are
+    /// screened in the simulator's tests: tests/suite/diagnose.rs.)
+    #[test]
+    fn sets_aside_the_foreign_returns_and_only_them() {
+        let scenario = Scenario {
+            nav_tau_s: Some([60.0, 30.0]),
+            sigma_white_m: 0.005,
+            ..Default::default()
+        };
+        let clean = draw(&scenario, 5);
+        let (kept, report) = screen(&clean, MAX_SHARE);
+        assert_eq!(report.set_aside, 0, "{report:?}");
+        assert_eq!(kept.observations.len(), clean.observations.len());
+
+        let mut dirty = clean.clone();
+        let mut moved = Vec::new();
+        for (i, o) in dirty.observations.iter_mut().enumerate() {
+            if i % 97 == 13 {
+                o.residual_m -= 0.06 + 0.09 * ((i % 7) as f64 / 6.0);
+                moved.push(i);
+            }
+        }
+        let (kept, report) = screen(&dirty, MAX_SHARE);
+        assert_eq!(report.set_aside, moved.len(), "{report:?}");
+        assert!(report.unused_references.is_empty());
+        assert_eq!(
+            kept.observations.len(),
+            dirty.observations.len() - moved.len()
+        );
+        assert!(kept.observations.iter().all(|o| {
+            clean
+                .observations
+                .iter()
+                .any(|c| c.covariates == o.covariates && c.residual_m == o.residual_m)
+        }));
+    }
+
+    /// A reference half of whose returns are foreign is left out and named (whichever half the
+    /// surface follows, the other half is set aside: more than the 25% allowed).
+    #[test]
+    fn a_mostly_foreign_reference_is_left_out() {
+        let mut set = draw(&Scenario::default(), 6);
+        for (i, o) in set.observations.iter_mut().enumerate() {
+            if o.reference == 3 && i % 2 == 0 {
+                o.residual_m += 0.12;
+            }
+        }
+        let (kept, report) = screen(&set, MAX_SHARE);
+        assert_eq!(
+            report.unused_references,
+            vec!["P3".to_string()],
+            "{:?}",
+            report.by_reference.get("P3")
+        );
+        assert!(kept.observations.iter().all(|o| o.reference != 3));
+        assert!(report.on_unused_references > 0);
+    }
+}
