@@ -162,7 +162,11 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
         rec.alt_m -= d_ned[2];
         rec.roll_rad += err[3];
         rec.pitch_rad += err[4];
-        rec.platform_heading_rad += err[5] + fx.heading_bias_deg.unwrap_or(0.0).to_radians();
+        // Wrapped into [0, 2 pi) as an SBET writes it (the writer refuses a heading beyond
+        // 2 pi as one in degrees).
+        rec.platform_heading_rad =
+            (rec.platform_heading_rad + err[5] + fx.heading_bias_deg.unwrap_or(0.0).to_radians())
+                .rem_euclid(std::f64::consts::TAU);
         sbet.push(&rec)?;
         if let Some(w) = truth.as_mut() {
             w.push(&t_rec)?;
