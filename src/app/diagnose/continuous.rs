@@ -78,11 +78,21 @@ fn knots<'a>(
     (idx, rows, sigma)
 }
 
-/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient.
-fn bridge_var_m2(o: &Observation, nav_var: &[[f64; 6]; 6], w: f64, tau: [f64; 2]) -> f64 {
+/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient, the
+/// navigation variances scaled by `scale` (position, attitude block).
+fn bridge_var_m2(
+    o: &Observation,
+    nav_var: &[[f64; 6]; 6],
+    w: f64,
+    tau: [f64; 2],
+    scale: [f64; 2],
+) -> f64 {
     let shape = w * (1.0 - w) * KNOT_S;
     (0..6)
-        .map(|k| o.nav_gradient[k].powi(2) * 2.0 * nav_var[k][k].max(0.0) / tau[k / 3] * shape)
+        .map(|k| {
+            let a = scale[k / 3];
+            o.nav_gradient[k].powi(2) * 2.0 * a * a * nav_var[k][k].max(0.0) / tau[k / 3] * shape
+        })
         .sum()
 }
 
@@ -138,8 +148,7 @@ pub(crate) fn gram(
     gram_and_log_det(set, selected, p, row, tau).0
 }
 
-/// [`gram`] and `ln det C` of the same returns (for the likelihood of the nuisance,
-/// `app::diagnose::nuisance`): by the matrix determinant lemma
+/// [`gram`] and `ln det C` of the same returns, by the matrix determinant lemma
 /// `det C = det D det M / det Q`, `M = Q + H^T D^-1 H` factorised anyway.
 pub(crate) fn gram_and_log_det(
     set: &ObservationSet,
@@ -148,50 +157,105 @@ pub(crate) fn gram_and_log_det(
     row: &RowFn,
     tau: [f64; 2],
 ) -> (DMatrix<f64>, f64) {
-    let (idx, rows, sigma) = knots(set, selected);
-    let nk = idx.len();
-    let (q_diag, q_next) = prior_precision(&idx, &sigma, tau);
-    let mut m_diag: Vec<Matrix6<f64>> = q_diag
-        .iter()
-        .map(|d| Matrix6::from_diagonal(&(*d).into()))
-        .collect();
-    let mut m_next: Vec<Matrix6<f64>> = q_next
-        .iter()
-        .map(|d| Matrix6::from_diagonal(&(*d).into()))
-        .collect();
-    let mut a = DMatrix::<f64>::zeros(p, p);
-    let mut b = DMatrix::<f64>::zeros(6 * nk, p);
-    let mut entries = Vec::new();
-    let mut log_det_d = 0.0;
-    for r in &rows {
-        let o = r.o;
-        let nav_cov = &set.visits[o.visit].nav_cov;
-        let d = o.var_white_m2 + bridge_var_m2(o, nav_cov, r.w, tau);
-        log_det_d += d.ln();
-        let d_inv = 1.0 / d;
-        entries.clear();
-        row(o, &mut entries);
-        for &(ca, xa) in &entries {
-            for &(cb, xb) in &entries {
-                a[(ca, cb)] += d_inv * xa * xb;
+    KnotSums::accumulate(set, selected, p, row, tau, [1.0; 2]).solve(tau, [1.0; 2])
+}
+
+/// The returns on the selected references summed knot by knot, their independent variances
+/// `D` (white plus bridge) fixed at the correlation times and scales they were accumulated
+/// with: all that `X^T C^-1 X` and `ln det C` need besides the knots' prior, so that the
+/// likelihood of the nuisance (`app::diagnose::nuisance`) costs O(K 6 p^2) per evaluation
+/// instead of a pass over the returns.
+pub(crate) struct KnotSums {
+    /// Knots (grid indices, ascending) and their sigmas before any scale.
+    idx: Vec<i64>,
+    sigma: Vec<[f64; 6]>,
+    /// `X^T D^-1 X` (`p x p`).
+    x_d_x: DMatrix<f64>,
+    /// Diagonal and next-knot blocks of `H^T D^-1 H`.
+    h_d_h_diag: Vec<Matrix6<f64>>,
+    h_d_h_next: Vec<Matrix6<f64>>,
+    /// `B = H^T D^-1 X` (`6 K x p`).
+    h_d_x: DMatrix<f64>,
+    /// `ln det D`.
+    log_det_d: f64,
+}
+
+impl KnotSums {
+    /// Sums over the returns on `selected`, `D` at correlation times `tau` and the navigation
+    /// sigmas scaled by `scale` (position, attitude).
+    pub(crate) fn accumulate(
+        set: &ObservationSet,
+        selected: &[bool],
+        p: usize,
+        row: &RowFn,
+        tau: [f64; 2],
+        scale: [f64; 2],
+    ) -> Self {
+        let (idx, rows, sigma) = knots(set, selected);
+        let nk = idx.len();
+        let mut s = KnotSums {
+            x_d_x: DMatrix::zeros(p, p),
+            h_d_h_diag: vec![Matrix6::zeros(); nk],
+            h_d_h_next: vec![Matrix6::zeros(); nk.saturating_sub(1)],
+            h_d_x: DMatrix::zeros(6 * nk, p),
+            log_det_d: 0.0,
+            idx,
+            sigma,
+        };
+        let mut entries = Vec::new();
+        for r in &rows {
+            let o = r.o;
+            let nav_cov = &set.visits[o.visit].nav_cov;
+            let d = o.var_white_m2 + bridge_var_m2(o, nav_cov, r.w, tau, scale);
+            s.log_det_d += d.ln();
+            let d_inv = 1.0 / d;
+            entries.clear();
+            row(o, &mut entries);
+            for &(ca, xa) in &entries {
+                for &(cb, xb) in &entries {
+                    s.x_d_x[(ca, cb)] += d_inv * xa * xb;
+                }
+            }
+            let g = SMatrix::<f64, 6, 1>::from_column_slice(&o.nav_gradient);
+            let (hl, hr) = (g * (1.0 - r.w), g * r.w);
+            s.h_d_h_diag[r.knot] += hl * hl.transpose() * d_inv;
+            s.h_d_h_diag[r.knot + 1] += hr * hr.transpose() * d_inv;
+            s.h_d_h_next[r.knot] += hl * hr.transpose() * d_inv;
+            for &(c, x) in &entries {
+                for k in 0..6 {
+                    s.h_d_x[(6 * r.knot + k, c)] += hl[k] * d_inv * x;
+                    s.h_d_x[(6 * r.knot + 6 + k, c)] += hr[k] * d_inv * x;
+                }
             }
         }
-        let g = SMatrix::<f64, 6, 1>::from_column_slice(&o.nav_gradient);
-        let (hl, hr) = (g * (1.0 - r.w), g * r.w);
-        m_diag[r.knot] += hl * hl.transpose() * d_inv;
-        m_diag[r.knot + 1] += hr * hr.transpose() * d_inv;
-        m_next[r.knot] += hl * hr.transpose() * d_inv;
-        for &(c, x) in &entries {
-            for k in 0..6 {
-                b[(6 * r.knot + k, c)] += hl[k] * d_inv * x;
-                b[(6 * r.knot + 6 + k, c)] += hr[k] * d_inv * x;
-            }
-        }
+        s
     }
-    let (whitened, log_det_m) = whitened_gram(&m_diag, &m_next, &b);
-    // ln det Q = -ln det(prior covariance).
-    let log_det_c = log_det_d + log_det_m + prior_log_det(&idx, &sigma, tau);
-    (a - whitened, log_det_c)
+
+    /// `X^T C^-1 X` and `ln det C` with the knots' prior at correlation times `tau` and the
+    /// navigation sigmas scaled by `scale` (exact when they are the values accumulated with;
+    /// elsewhere `D`'s bridge variances stay at those values).
+    pub(crate) fn solve(&self, tau: [f64; 2], scale: [f64; 2]) -> (DMatrix<f64>, f64) {
+        let sigma: Vec<[f64; 6]> = self
+            .sigma
+            .iter()
+            .map(|s| std::array::from_fn(|k| s[k] * scale[k / 3]))
+            .collect();
+        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, tau);
+        let m_diag: Vec<Matrix6<f64>> = q_diag
+            .iter()
+            .zip(&self.h_d_h_diag)
+            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
+            .collect();
+        let m_next: Vec<Matrix6<f64>> = q_next
+            .iter()
+            .zip(&self.h_d_h_next)
+            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
+            .collect();
+        let (whitened, log_det_m) = whitened_gram(&m_diag, &m_next, &self.h_d_x);
+        // ln det Q = -ln det(prior covariance).
+        let log_det_c = self.log_det_d + log_det_m + prior_log_det(&self.idx, &sigma, tau);
+        (&self.x_d_x - whitened, log_det_c)
+    }
 }
 
 /// `B^T M^-1 B` for the symmetric positive definite block-tridiagonal `M` (diagonal blocks
@@ -260,8 +324,8 @@ mod tests {
             for &(col, v) in &entries {
                 x[(i, col)] = v;
             }
-            c[(i, i)] =
-                r.o.var_white_m2 + bridge_var_m2(r.o, &set.visits[r.o.visit].nav_cov, r.w, tau);
+            c[(i, i)] = r.o.var_white_m2
+                + bridge_var_m2(r.o, &set.visits[r.o.visit].nav_cov, r.w, tau, [1.0; 2]);
         }
         let prior = DMatrix::from_fn(6 * nk, 6 * nk, |i, j| {
             let (ki, kj) = (i % 6, j % 6);
@@ -306,5 +370,38 @@ mod tests {
             d < 1e-8 * dense_log_det.abs(),
             "ln det C {fast_log_det} vs dense {dense_log_det}"
         );
+    }
+
+    /// Sums accumulated on the unscaled set with a scale equal the sums of the set whose
+    /// navigation covariances carry that scale (what `nuisance::apply` produces), and a
+    /// solve at other correlation times and scales equals the full pass there up to the
+    /// bridge variances held (a few per cent of the navigation variance over 0.1 s knots).
+    #[test]
+    fn knot_sums_carry_the_scale_of_the_navigation_sigmas() {
+        let (tau, scale) = ([45.0, 20.0], [0.7, 1.4]);
+        let base = draw(&Scenario::default(), 5);
+        let mut scaled = base.clone();
+        for v in scaled.visits.iter_mut() {
+            for k in 0..6 {
+                for l in 0..6 {
+                    v.nav_cov[k][l] *= scale[k / 3] * scale[l / 3];
+                }
+            }
+        }
+        let selected = vec![true; base.reference_ids.len()];
+        let p = N_EFFECTS + 1;
+        let (want, want_log_det) = gram_and_log_det(&scaled, &selected, p, &catalogue_row, tau);
+        let sums = KnotSums::accumulate(&base, &selected, p, &catalogue_row, tau, scale);
+        let (got, got_log_det) = sums.solve(tau, scale);
+        let size = crate::testing::max_abs(want.iter().copied());
+        let err = crate::testing::max_abs((&got - &want).iter().copied());
+        // The same sums in another order of scaling: rounding only.
+        assert!(err < 1e-10 * size, "largest difference {err:e} of {size:e}");
+        assert!((got_log_det - want_log_det).abs() < 1e-10 * want_log_det.abs());
+        // Solved away from where it was summed: close, not equal (bridge variances held).
+        let far = KnotSums::accumulate(&base, &selected, p, &catalogue_row, [60.0, 30.0], [1.0; 2]);
+        let (approx, _) = far.solve(tau, scale);
+        let rel = crate::testing::max_abs((&approx - &want).iter().copied()) / size;
+        assert!(rel > 0.0 && rel < 0.05, "relative difference {rel:e}");
     }
 }

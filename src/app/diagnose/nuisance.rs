@@ -13,7 +13,7 @@
 //! the observed information (the inverse Hessian of the restricted log-likelihood in the
 //! logarithms of the parameters).
 
-use super::continuous::gram_and_log_det;
+use super::continuous::KnotSums;
 use super::design::catalogue_row;
 use super::model::{ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
@@ -30,6 +30,9 @@ const MIN_PIVOT: f64 = 1e-3;
 /// a factor 16 shrinks to 0.618^9 = 1.3% of its width: 4% in the value, against sigmas of
 /// 10-50% on a lap).
 const SWEEPS: usize = 2;
+/// Rounds of summing the returns at the current estimate and searching again (the bridge
+/// variances follow the estimate; two rounds move it by well under its sigma).
+const ROUNDS: usize = 3;
 const GOLDEN_STEPS: usize = 9;
 /// Step of the numerical Hessian in the logarithm of a parameter.
 const HESSIAN_STEP: f64 = 0.05;
@@ -145,24 +148,38 @@ fn scale_into(base: &ObservationSet, out: &mut ObservationSet, x: &[f64; 4]) {
 }
 
 /// The restricted log-likelihood of the returns on the selected references as a function of
-/// the nuisance, with the fixed-effect columns chosen once.
+/// the nuisance, with the fixed-effect columns chosen once. The returns are summed knot by
+/// knot ([`KnotSums`]) at one value of the nuisance, `sums_at`; an evaluation elsewhere keeps
+/// their independent variances (white plus the bridge between knots, a few per cent of the
+/// navigation variance) at that value, and [`estimate`] re-sums at the optimum until it stays.
 struct Reml<'a> {
     base: &'a ObservationSet,
-    work: ObservationSet,
     selected: Vec<bool>,
     columns: Vec<usize>,
+    sums: KnotSums,
+    sums_at: [f64; 4],
     evaluations: usize,
 }
 
 impl Reml<'_> {
+    /// Sums the returns again at `x`.
+    fn resum(&mut self, x: &[f64; 4]) {
+        self.sums = KnotSums::accumulate(
+            self.base,
+            &self.selected,
+            N_EFFECTS + 1,
+            &catalogue_row,
+            [x[0], x[1]],
+            [x[2], x[3]],
+        );
+        self.sums_at = *x;
+    }
+
     /// `-1/2 (ln det C + ln det X^T C^-1 X + r^T C^-1 r - b^T (X^T C^-1 X)^-1 b)`, constants
     /// dropped; `None` where a factorisation fails.
     fn at(&mut self, x: &[f64; 4]) -> Option<f64> {
         self.evaluations += 1;
-        scale_into(self.base, &mut self.work, x);
-        let p = N_EFFECTS + 1;
-        let (m, log_det_c) =
-            gram_and_log_det(&self.work, &self.selected, p, &catalogue_row, [x[0], x[1]]);
+        let (m, log_det_c) = self.sums.solve([x[0], x[1]], [x[2], x[3]]);
         let c = &self.columns;
         let n = DMatrix::from_fn(c.len(), c.len(), |i, j| m[(c[i], c[j])]);
         let b = DVector::from_fn(c.len(), |i, _| m[(c[i], N_EFFECTS)]);
@@ -216,33 +233,40 @@ pub fn estimate(
         fixed[2].unwrap_or(1.0),
         fixed[3].unwrap_or(1.0),
     ];
-    let mut work = set.clone();
-    scale_into(set, &mut work, &x);
-    let m0 = super::continuous::gram(
-        &work,
+    let sums = KnotSums::accumulate(
+        set,
         &selected,
         N_EFFECTS + 1,
         &catalogue_row,
         [x[0], x[1]],
+        [x[2], x[3]],
     );
+    let columns = estimable_columns(&sums.solve([x[0], x[1]], [x[2], x[3]]).0);
     let mut reml = Reml {
         base: set,
-        work,
         selected,
-        columns: estimable_columns(&m0),
+        columns,
+        sums,
+        sums_at: x,
         evaluations: 0,
     };
     let free: Vec<usize> = (0..4).filter(|&i| fixed[i].is_none()).collect();
     let mut best = reml.at(&x).ok_or_else(|| failed("the starting values"))?;
-    for _ in 0..SWEEPS {
-        let before = x;
-        for &i in &free {
-            best = search(&mut reml, &mut x, i, best);
+    for _ in 0..ROUNDS {
+        for _ in 0..SWEEPS {
+            let before = x;
+            for &i in &free {
+                best = search(&mut reml, &mut x, i, best);
+            }
+            if !moved(&before, &x) {
+                break;
+            }
         }
-        let moved = (0..4).any(|i| (x[i] / before[i]).ln().abs() > 0.01);
-        if !moved {
+        if !moved(&reml.sums_at, &x) {
             break;
         }
+        reml.resum(&x);
+        best = reml.at(&x).ok_or_else(|| failed("the estimate"))?;
     }
     let (sigma, sigma_kind) = log_sigmas(&mut reml, &x, &free, best);
     let param = |i: usize| Parameter {
@@ -264,6 +288,11 @@ pub fn estimate(
         fixed_effects: reml.columns.len(),
         evaluations: reml.evaluations,
     })
+}
+
+/// Whether any parameter moved by more than 1% between `a` and `b`.
+fn moved(a: &[f64; 4], b: &[f64; 4]) -> bool {
+    (0..4).any(|i| (b[i] / a[i]).ln().abs() > 0.01)
 }
 
 fn failed(what: &str) -> Error {
