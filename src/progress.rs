@@ -43,6 +43,23 @@ pub fn bar(len: u64, what: &str) -> ProgressBar {
     bar
 }
 
+/// A bar of `len` stages labelled `what`, the current stage's message beside it; hidden when
+/// stderr is not a terminal.
+pub fn stages(len: u64, what: &str) -> ProgressBar {
+    if !std::io::stderr().is_terminal() {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new(len);
+    let template = format!("{{spinner}} {what} [{{bar:20}}] {{pos}}/{{len}} {{elapsed}}: {{msg}}");
+    bar.set_style(
+        ProgressStyle::with_template(&template)
+            .expect("static template")
+            .progress_chars("=> "),
+    );
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
 #[cfg(test)]
 mod tests {
     use super::rate_text;

@@ -54,7 +54,12 @@ pub fn diagnose(a: &DiagnoseArgs, quiet: bool) -> Result<()> {
     }
     crate::cli::remove_stale_temps(&req.out_dir)?;
     let started = std::time::Instant::now();
-    let d = diagnose::run(&loaded, &req)?;
+    let bar = if quiet {
+        indicatif::ProgressBar::hidden()
+    } else {
+        kinescan::progress::stages(0, "diagnosing")
+    };
+    let d = diagnose::run_with_progress(&loaded, &req, &bar)?;
     if !quiet {
         let (b, f) = (&d.gap.before, &d.gap.after);
         println!("verdict   {}", d.headline());

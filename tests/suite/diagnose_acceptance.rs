@@ -65,37 +65,39 @@ pub const ACCEPTANCE_SCENARIO: &str = include_str!("../../pipelines/scenario_acc
 /// The acceptance survey with `effects` injected, `seed`, simulated into `dir/survey`
 /// with the demo pipeline beside it.
 pub fn simulate_case(dir: &Path, effects: &str, seed: u64) {
-    let text = ACCEPTANCE_SCENARIO.replace(
-        "[nav_errors]",
-        &format!("[effects]\n{effects}\n\n[nav_errors]"),
-    );
-    let mut sc = Scenario::parse(&text, "city block").unwrap();
-    sc.seed = seed;
-    let opts = SimOptions::default();
-    simulate_scenario(&sc, &dir.join("survey"), &opts).unwrap();
-    std::fs::write(dir.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
+    simulate_text(dir, &with_effects(ACCEPTANCE_SCENARIO, effects), seed, None).unwrap();
 }
 
-/// The navigation model the acceptance survey was simulated with (pipelines/
-/// scenario_acceptance.toml `[nav_errors]`: Gauss-Markov, 60 s / 30 s, SMRMSG sigmas exact),
-/// held instead of learned. The table measures the selection, the location and the
-/// re-processing on this survey as before the nuisance was learned (docs/diagnosis.md,
-/// "Acceptance on the simulator"); learning it on 15 laps costs minutes per diagnosis, and the
-/// matrix over navigation error models that would test the learning is not built yet.
-const HELD_NAVIGATION_MODEL: [&str; 4] = [
-    "diagnose.nav_position_tau_s=60",
-    "diagnose.nav_attitude_tau_s=30",
-    "diagnose.nav_position_scale=1",
-    "diagnose.nav_attitude_scale=1",
-];
+/// Scenario `text` with `effects` as its `[effects]` table.
+pub fn with_effects(text: &str, effects: &str) -> String {
+    text.replace(
+        "[nav_errors]",
+        &format!("[effects]\n{effects}\n\n[nav_errors]"),
+    )
+}
 
-/// Diagnoses the survey in `dir`.
+/// Simulates scenario `text` with `seed` (and `duration_s` instead of its own) into
+/// `dir/survey`, with the demo pipeline beside it.
+pub fn simulate_text(
+    dir: &Path,
+    text: &str,
+    seed: u64,
+    duration_s: Option<f64>,
+) -> kinescan::Result<()> {
+    let mut sc = Scenario::parse(text, "acceptance")?;
+    sc.seed = seed;
+    if let Some(d) = duration_s {
+        sc.duration_s = d;
+    }
+    simulate_scenario(&sc, &dir.join("survey"), &SimOptions::default())?;
+    std::fs::write(dir.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
+    Ok(())
+}
+
+/// Diagnoses the survey in `dir` as a user would: the navigation error model learned from
+/// the survey (no `[diagnose]` key set).
 pub fn diagnose_dir(dir: &Path) -> kinescan::Result<Diagnosis> {
-    let held: Vec<String> = HELD_NAVIGATION_MODEL
-        .iter()
-        .map(|s| s.to_string())
-        .collect();
-    let p = config::load(&dir.join("pipeline.toml"), &held)?;
+    let p = config::load(&dir.join("pipeline.toml"), &[])?;
     let req = Request {
         patches: dir.join("survey/patches.csv"),
         control_points: None,
@@ -160,7 +162,7 @@ pub fn score(d: &Diagnosis, expect: &Expect) -> Score {
 
 /// The held-out chi2/dof before exceeds 1 by more than 3 of its standard deviations
 /// (`sqrt(2 / n)`): an excess to close. Below that the "closed" share is a ratio of noise.
-fn excess_is_significant(g: &kinescan::app::diagnose::report::GapMetrics) -> bool {
+pub fn excess_is_significant(g: &kinescan::app::diagnose::report::GapMetrics) -> bool {
     g.chi2_per_dof - 1.0 > 3.0 * (2.0 / g.n as f64).sqrt()
 }
 
@@ -252,7 +254,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
 }
 
 /// Sample standard deviation of the finite values (NaN for fewer than two).
-fn std(x: &[f64]) -> f64 {
+pub fn std(x: &[f64]) -> f64 {
     let x: Vec<f64> = x.iter().copied().filter(|e| e.is_finite()).collect();
     let mean = x.iter().sum::<f64>() / x.len() as f64;
     (x.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (x.len() as f64 - 1.0)).sqrt()
@@ -264,12 +266,12 @@ fn missed(x: &[f64]) -> usize {
 }
 
 /// Share of normalised errors inside +-2, a missed estimate outside (NaN for none).
-fn within_2_sigma(x: &[f64]) -> f64 {
+pub fn within_2_sigma(x: &[f64]) -> f64 {
     x.iter().filter(|e| e.abs() < 2.0).count() as f64 / x.len() as f64
 }
 
 /// Median (NaN for none).
-fn median(mut x: Vec<f64>) -> f64 {
+pub fn median(mut x: Vec<f64>) -> f64 {
     x.sort_by(f64::total_cmp);
     x.get(x.len().saturating_sub(1) / 2)
         .copied()
@@ -299,7 +301,7 @@ pub fn print_table(rows: &[Row]) {
 }
 
 /// A catalogue case: `toml` injected in the simulator, `(effect, correction)` expected.
-fn catalogue(label: &str, toml: &str, effect: Effect, correction: f64) -> Case {
+pub fn catalogue(label: &str, toml: &str, effect: Effect, correction: f64) -> Case {
     Case {
         label: label.into(),
         effects_toml: toml.into(),

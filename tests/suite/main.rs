@@ -17,6 +17,7 @@ mod day;
 mod day_night;
 mod diagnose;
 mod diagnose_acceptance;
+mod diagnose_matrix;
 mod epsg_frames;
 mod frames;
 mod fuzz;

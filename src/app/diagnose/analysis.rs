@@ -69,16 +69,22 @@ pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
     let covariate_tests = locate(set, &split.fit, None, settings.bins)?;
     let located_in = located_in(&covariate_tests, settings.alpha);
     let model_free = match selection.verdict {
-        Verdict::Unexplained => {
-            let leading = located_in
-                .first()
-                .copied()
-                .unwrap_or(covariate_tests[0].covariate);
-            Some(model_free(set, &split, leading, None, settings.bins)?)
-        }
+        Verdict::Unexplained => Some(model_free_correction(
+            set,
+            &split,
+            &covariate_tests,
+            &located_in,
+            settings.bins,
+        )?),
         _ => None,
     };
-    let reason = reason(&selection, &located_in, model_free.as_ref());
+    let reason = reason(
+        &selection,
+        selection.verdict,
+        &located_in,
+        model_free.as_ref(),
+        None,
+    );
     Ok(Analysis {
         split,
         before,
@@ -91,12 +97,62 @@ pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
     })
 }
 
-fn percent(share: Option<f64>) -> String {
-    share.map_or("-".to_string(), |s| format!("{:.0}%", 100.0 * s))
+/// The model-free correction along the leading located covariate (the most significant one
+/// when none is significant).
+pub fn model_free_correction(
+    set: &ObservationSet,
+    split: &Split,
+    tests: &[CovariateTest],
+    located: &[Covariate],
+    bins: usize,
+) -> Result<Correction> {
+    let leading = located.first().copied().unwrap_or(tests[0].covariate);
+    model_free(set, split, leading, None, bins)
 }
 
-/// The verdict in one sentence.
-fn reason(sel: &Selection, located: &[Covariate], correction: Option<&Correction>) -> String {
+/// The held-out gap of the survey observed again with the explanation applied
+/// (`app::diagnose::confirm`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Reobserved {
+    /// Held-out chi-square and returns.
+    pub chi2: f64,
+    pub n: usize,
+    /// `P(chi2_n > chi2)`.
+    pub p_value: f64,
+    /// Rounds of correction and observation.
+    pub rounds: usize,
+}
+
+/// The share of the held-out excess chi-square removed, in words; bounded: a gap that was
+/// not significantly above the model's (chi2/dof - 1 within 3 of its sd `sqrt(2 / n)`) has
+/// no share to close, and an after-gap at or below 1 closes all of it.
+pub fn closure_words(before_chi2_per_dof: f64, after_chi2_per_dof: f64, n: usize) -> String {
+    let excess = before_chi2_per_dof - 1.0;
+    if !(excess > 3.0 * (2.0 / n.max(1) as f64).sqrt()) {
+        return "no significant held-out excess to close".to_string();
+    }
+    let share = (before_chi2_per_dof - after_chi2_per_dof) / excess;
+    if share >= 1.0 {
+        "it closes the held-out excess chi2 (what remains is the model's own noise)".to_string()
+    } else if share > 0.0 {
+        format!(
+            "it removes {:.0}% of the held-out excess chi2",
+            100.0 * share
+        )
+    } else {
+        "it removes none of the held-out excess chi2".to_string()
+    }
+}
+
+/// The verdict in one sentence (`verdict`: the selection's, or the one judged on the survey
+/// observed again, `reobserved`).
+pub fn reason(
+    sel: &Selection,
+    verdict: Verdict,
+    located: &[Covariate],
+    correction: Option<&Correction>,
+    reobserved: Option<&Reobserved>,
+) -> String {
     let null = format!(
         "held-out chi2/dof {:.3} over {} returns (p = {:.2e})",
         sel.null.chi2 / sel.null.n as f64,
@@ -122,39 +178,73 @@ fn reason(sel: &Selection, located: &[Covariate], correction: Option<&Correction
                 .join(", ")
         )
     };
-    match sel.verdict {
+    let null_dof = sel.null.chi2 / sel.null.n as f64;
+    let closing = |after_chi2: f64, after_n: usize| {
+        closure_words(null_dof, after_chi2 / after_n as f64, sel.null.n)
+    };
+    let again = reobserved.map(|r| {
+        format!(
+            "applied and observed again ({} round{}), the held-out references give chi2/dof \
+             {:.3} (p = {:.2e})",
+            r.rounds,
+            if r.rounds == 1 { "" } else { "s" },
+            r.chi2 / r.n as f64,
+            r.p_value
+        )
+    });
+    match verdict {
         Verdict::None => format!(
             "the survey agrees with its model: {null}, and no catalogue effect is significant at {}",
             sel.alpha
         ),
-        Verdict::Effect => format!(
-            "{} explains the gap: {null}; it removes {} of the held-out excess chi2",
-            names(&sel.effects),
-            percent(sel.closure)
-        ),
+        Verdict::Effect => {
+            let proposed = sel.proposed.as_ref().map_or(&sel.effects, |p| &p.effects);
+            match (&again, reobserved) {
+                (Some(a), Some(r)) => format!(
+                    "{} explains the gap: {null}; {a}: {}",
+                    names(proposed),
+                    closing(r.chi2, r.n)
+                ),
+                _ => format!(
+                    "{} explains the gap: {null}; {} (linearised)",
+                    names(proposed),
+                    sel.remaining
+                        .map_or(String::new(), |r| closing(r.chi2, r.n))
+                ),
+            }
+        }
         Verdict::Unexplained => {
             let partial = sel.chosen.as_ref().map_or(
                 "no catalogue effect is significant on both halves".to_string(),
                 |f| {
-                    let left = sel.remaining.map_or(String::new(), |r| {
-                        format!(
-                            " and leaves chi2/dof {:.3} (p = {:.2e}), which the model still rejects",
-                            r.chi2 / r.n as f64,
-                            r.p_value
-                        )
-                    });
+                    let left = match (&again, reobserved) {
+                        (Some(a), Some(r)) => Some(format!(
+                            "{a}, which the model still rejects; {}",
+                            closing(r.chi2, r.n)
+                        )),
+                        _ => sel.remaining.map(|r| {
+                            format!(
+                                "leaves chi2/dof {:.3} (p = {:.2e}, linearised), which the \
+                                 model still rejects",
+                                r.chi2 / r.n as f64,
+                                r.p_value
+                            )
+                        }),
+                    };
                     format!(
-                        "the best catalogue explanation ({}) removes {} of the held-out excess chi2{left}",
+                        "the best catalogue explanation ({}) {}",
                         names(&f.effects),
-                        percent(sel.closure)
+                        left.unwrap_or_default()
                     )
                 },
             );
             let fix = correction.map_or(String::new(), |c| {
+                let share = c.closure.map_or("-".to_string(), |s| {
+                    format!("{:.0}%", 100.0 * s.clamp(0.0, 1.0))
+                });
                 format!(
-                    "; a binned offset along {} closes {} on the held-out references",
-                    c.covariate.name(),
-                    percent(c.closure)
+                    "; a binned offset along {} closes {share} of the held-out excess",
+                    c.covariate.name()
                 )
             });
             format!("the survey departs from its model ({null}) and {partial}; {place}{fix}")

@@ -7,6 +7,7 @@
 //! again) -> [`report`] and [`plots`] (diagnosis.json, summary.md, PNGs, corrected.toml).
 
 pub mod analysis;
+pub mod confirm;
 pub mod continuous;
 mod design;
 pub mod fit;
@@ -85,6 +86,8 @@ struct Statistics {
     normalised: Vec<f64>,
     /// Smallest size of every catalogue effect named with 90% probability.
     detectable: Vec<(model::Effect, Option<f64>)>,
+    /// Everything the statistics concluded (for the verdict on the re-observed gap).
+    analysis: analysis::Analysis,
 }
 
 /// What the statistics learned from the survey before testing it: the returns set aside as
@@ -133,36 +136,154 @@ impl Learned {
 /// Covariates shown in plots (the leading ones of the tests).
 const PLOTTED_COVARIATES: usize = 3;
 
+/// Stages of a diagnosis shown by its progress bar: observe, learn, test, at most
+/// [`confirm::MAX_ROUNDS`] rounds of re-observation, write.
+const STAGES: u64 = 4 + confirm::MAX_ROUNDS as u64;
+
 /// Diagnoses pipeline `p` against the reference patches (and control points) of `req`;
 /// writes the report files into `req.out_dir` and returns the report.
 pub fn run(p: &LoadedPipeline, req: &Request) -> Result<report::Diagnosis> {
+    run_with_progress(p, req, &indicatif::ProgressBar::hidden())
+}
+
+/// [`run`], showing its stages on `bar` (e.g. [`crate::progress::stages`] of [`STAGES`]).
+pub fn run_with_progress(
+    p: &LoadedPipeline,
+    req: &Request,
+    bar: &indicatif::ProgressBar,
+) -> Result<report::Diagnosis> {
     observe::check_pipeline(p)?;
     let cfg = p.config.diagnose.clone().unwrap_or_default();
     check_collisions(p, req)?;
     let refs = observe::References::read(&req.patches, req.control_points.as_deref())?;
+    bar.set_length(STAGES);
+    bar.set_message("observing the returns on the references");
     let mut observed = observe::observe(p, &refs, &cfg)?;
+    bar.inc(1);
+    bar.set_message("screening foreign returns, learning the navigation error model");
     let (learned, set) = Learned::from(&observed.set, &cfg)?;
     observed.set = set;
-    let stats = statistics(&observed.set, &cfg)?;
+    bar.inc(1);
+    bar.set_message("testing the catalogue");
+    let mut stats = statistics(&observed.set, &cfg)?;
+    bar.inc(1);
+    bar.set_message("observing again with the proposed correction");
+    let confirmation =
+        confirm_explanation(p, req, &refs, &learned, &observed.set, &mut stats, bar)?;
+    bar.set_position(STAGES - 1);
+    bar.set_message("writing the report");
     let names = output_names();
     let names: Vec<&str> = names.iter().map(String::as_str).collect();
-    publish_folder(
+    let d = publish_folder(
         &req.out_dir,
         "diagnosis",
         report::DIAGNOSIS_JSON,
         &names,
-        |dir| write_outputs(p, req, &refs, (observed, learned), stats, dir),
-    )
+        |dir| write_outputs(p, (observed, learned), stats, confirmation.as_ref(), dir),
+    )?;
+    bar.finish_and_clear();
+    Ok(d)
+}
+
+/// Judges the selection's proposed explanation on the survey observed again with it
+/// ([`confirm`]): the verdict becomes `effect` when the model without it holds on the held-out
+/// references, or the re-observed held-out gap passes the same test; else `unexplained`, with
+/// the model-free correction. Updates `stats` (verdict, named, applied, reason).
+fn confirm_explanation(
+    p: &LoadedPipeline,
+    req: &Request,
+    refs: &observe::References,
+    learned: &Learned,
+    set: &model::ObservationSet,
+    stats: &mut Statistics,
+    bar: &indicatif::ProgressBar,
+) -> Result<Option<confirm::Confirmation>> {
+    let sel = &stats.analysis.selection;
+    let (Some(chosen), Some(proposed)) = (sel.chosen.clone(), sel.proposed.clone()) else {
+        return Ok(None);
+    };
+    let (null_rejected, alpha) = (sel.null.rejected, sel.alpha);
+    let cfg = p.config.diagnose.clone().unwrap_or_default();
+    let ids =
+        |r: &[usize]| -> Vec<String> { r.iter().map(|&i| set.reference_ids[i].clone()).collect() };
+    let split = stats.analysis.split.clone();
+    let (fit_ids, held_out_ids) = (ids(&split.fit), ids(&split.held_out));
+    let proposal = confirm::Proposal {
+        applied: chosen
+            .effects
+            .iter()
+            .copied()
+            .zip(chosen.estimate.iter().copied())
+            .collect(),
+        fit_ids: &fit_ids,
+        held_out_ids: &held_out_ids,
+    };
+    let prepare = |s: &model::ObservationSet| {
+        bar.inc(1);
+        learned.apply(s)
+    };
+    let c = confirm::confirm(p, refs, &cfg, &req.out_dir, &proposal, &prepare)?;
+    let holds = !null_rejected || c.p_value >= alpha;
+    let verdict = if holds {
+        select::Verdict::Effect
+    } else {
+        select::Verdict::Unexplained
+    };
+    if verdict == select::Verdict::Unexplained && stats.analysis.model_free.is_none() {
+        let a = &stats.analysis;
+        let m = analysis::model_free_correction(
+            set,
+            &split,
+            &a.covariate_tests,
+            &a.located_in,
+            locate::DEFAULT_BINS,
+        )?;
+        stats.model_free = Some((model_free_report(&m), gap_metrics(&m.after)));
+        stats.analysis.model_free = Some(m);
+    }
+    let a = &stats.analysis;
+    let reobserved = analysis::Reobserved {
+        chi2: c.after.chi2_per_dof * c.after.n as f64,
+        n: c.after.n,
+        p_value: c.p_value,
+        rounds: c.rounds,
+    };
+    stats.reason = analysis::reason(
+        &a.selection,
+        verdict,
+        &a.located_in,
+        a.model_free.as_ref(),
+        Some(&reobserved),
+    );
+    stats.verdict = report_verdict(verdict);
+    if holds {
+        // The preferred members carry the settled correction; the others keep their
+        // first-round estimates (each is what it would be were it alone the cause).
+        stats.named = proposed
+            .effects
+            .iter()
+            .zip(proposed.estimate.iter().zip(&proposed.sigma))
+            .map(|(&e, (&x, &s))| {
+                let settled = c.applied.iter().find(|(f, _)| *f == e).map(|(_, v)| *v);
+                (e, settled.unwrap_or(x), s)
+            })
+            .collect();
+        stats.applied = c.applied.clone();
+        Ok(Some(c))
+    } else {
+        stats.named.clear();
+        stats.applied.clear();
+        Ok(None)
+    }
 }
 
 /// Everything after the statistics, written into the staging folder `dir` (published by
 /// [`run`] as one set): the re-processing, the plots, the report.
 fn write_outputs(
     p: &LoadedPipeline,
-    req: &Request,
-    refs: &observe::References,
     (observed, learned): (observe::Observed, Learned),
     stats: Statistics,
+    confirmation: Option<&confirm::Confirmation>,
     dir: &Path,
 ) -> Result<report::Diagnosis> {
     let cfg = p.config.diagnose.clone().unwrap_or_default();
@@ -172,20 +293,20 @@ fn write_outputs(
     };
     let held_out_ids = ids(&stats.held_out);
     let before_normalised = held_out_values(set, &stats.held_out, &stats.normalised);
-    let (set_lines, after, after_normalised) = match (&stats.verdict, &stats.model_free) {
-        (report::Verdict::Effect, _) => {
-            let lines = reprocess::set_lines(&p.config, &stats.applied)?;
-            let corrected = reprocess::corrected(p, &lines, &req.out_dir)?;
-            let again = learned.apply(&observe::observe(&corrected, refs, &cfg)?.set);
-            let held = references_of(&again, &held_out_ids);
-            let (after, normalised) = gap_of(&again, &held)?;
+    let (set_lines, after, after_normalised) = match (confirmation, &stats.model_free) {
+        (Some(c), _) => {
+            let z = locate::normalised_residuals(&c.set, None);
             reprocess::write_pipeline(
-                &corrected.config,
+                &c.corrected.config,
                 &p.path,
-                &lines,
+                &c.set_lines,
                 &dir.join(reprocess::CORRECTED_PIPELINE),
             )?;
-            (lines, after, normalised)
+            (
+                c.set_lines.clone(),
+                gap_metrics(&c.after),
+                held_out_values(&c.set, &c.held_out, &z),
+            )
         }
         (_, Some((_, after))) => (Vec::new(), *after, Vec::new()),
         _ => (Vec::new(), stats.before, Vec::new()),
@@ -261,13 +382,6 @@ fn write_outputs(
     Ok(d)
 }
 
-/// The indices of reference ids `ids` in `set` (ids without observations there are skipped).
-fn references_of(set: &model::ObservationSet, ids: &[String]) -> Vec<usize> {
-    ids.iter()
-        .filter_map(|id| set.reference_ids.iter().position(|r| r == id))
-        .collect()
-}
-
 /// `values` of the observations on `refs`.
 fn held_out_values(set: &model::ObservationSet, refs: &[usize], values: &[f64]) -> Vec<f64> {
     set.observations
@@ -319,14 +433,10 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
     };
     let a = analysis::analyse(set, &settings)?;
     let sel = &a.selection;
-    let model_free = a.model_free.as_ref().map(|m| {
-        let r = report::ModelFreeReport {
-            covariate: m.covariate.name().into(),
-            bins: m.bins.iter().map(|b| bin_report(b, b.offset_m)).collect(),
-            closed_fraction: m.closure.unwrap_or(0.0),
-        };
-        (r, gap_metrics(&m.after))
-    });
+    let model_free = a
+        .model_free
+        .as_ref()
+        .map(|m| (model_free_report(m), gap_metrics(&m.after)));
     let obs = &sel.observability;
     let named = sel
         .effects
@@ -344,11 +454,7 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
     Ok(Statistics {
         fit: a.split.fit.clone(),
         held_out: a.split.held_out.clone(),
-        verdict: match sel.verdict {
-            select::Verdict::Effect => report::Verdict::Effect,
-            select::Verdict::None => report::Verdict::None,
-            select::Verdict::Unexplained => report::Verdict::Unexplained,
-        },
+        verdict: report_verdict(sel.verdict),
         named,
         applied,
         reason: a.reason.clone(),
@@ -416,14 +522,26 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
             let g = obs.groups.len();
             power::detectable(&fit_n, &held_n, cfg.alpha, g + g * (g - 1) / 2)
         },
+        analysis: a,
     })
 }
 
-/// The held-out gap of a re-processed set and its normalised residuals there.
-fn gap_of(set: &model::ObservationSet, refs: &[usize]) -> Result<(report::GapMetrics, Vec<f64>)> {
-    let g = metrics::gap(set, refs, None)?;
-    let z = locate::normalised_residuals(set, None);
-    Ok((gap_metrics(&g), held_out_values(set, refs, &z)))
+fn report_verdict(v: select::Verdict) -> report::Verdict {
+    match v {
+        select::Verdict::Effect => report::Verdict::Effect,
+        select::Verdict::None => report::Verdict::None,
+        select::Verdict::Unexplained => report::Verdict::Unexplained,
+    }
+}
+
+fn model_free_report(m: &locate::Correction) -> report::ModelFreeReport {
+    report::ModelFreeReport {
+        covariate: m.covariate.name().into(),
+        bins: m.bins.iter().map(|b| bin_report(b, b.offset_m)).collect(),
+        // The share of the held-out excess closed, bounded to [0, 1] (an after-gap below the
+        // model's own noise closes all of it).
+        closed_fraction: m.closure.unwrap_or(0.0).clamp(0.0, 1.0),
+    }
 }
 
 fn gap_metrics(g: &metrics::Gap) -> report::GapMetrics {

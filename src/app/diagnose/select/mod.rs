@@ -109,6 +109,11 @@ pub struct Selection {
     pub estimate: Vec<f64>,
     /// 1-sigma of each estimate.
     pub sigma: Vec<f64>,
+    /// The chosen explanation's effects, estimates and sigmas as `effects`, `estimate` and
+    /// `sigma` give them, whatever the verdict: the verdict here is judged on the linearised
+    /// held-out gap, and the diagnosis judges it again on the survey observed with the
+    /// correction applied (`app::diagnose::confirm`).
+    pub proposed: Option<Named>,
     /// The explanation to re-process with (the chosen groups' preferred members, fitted on the
     /// fit references); also set when the verdict is `unexplained` but a partial explanation
     /// was significant, so a report can say how little it closes.
@@ -310,8 +315,9 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
         (_, true) => Verdict::Unexplained,
         (None, false) => Verdict::None,
     };
-    let (effects, estimate, sigma) = match (&chosen, verdict) {
-        (Some(c), Verdict::Effect) => named(&cx, c)?,
+    let proposed = chosen.as_ref().map(|c| named(&cx, c)).transpose()?;
+    let (effects, estimate, sigma) = match (&proposed, verdict) {
+        (Some(n), Verdict::Effect) => (n.effects.clone(), n.estimate.clone(), n.sigma.clone()),
         _ => (Vec::new(), Vec::new(), Vec::new()),
     };
     Ok(Selection {
@@ -319,6 +325,7 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
         effects,
         estimate,
         sigma,
+        proposed,
         chosen: chosen.map(|c| c.fit),
         closure,
         null,
@@ -329,9 +336,20 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
     })
 }
 
+/// Every member of an explanation's groups with its estimate and sigma.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Named {
+    /// The members, each group's preferred member first.
+    pub effects: Vec<Effect>,
+    /// Estimates (fit references), in each name's unit.
+    pub estimate: Vec<f64>,
+    /// 1-sigma of each estimate.
+    pub sigma: Vec<f64>,
+}
+
 /// Every member of the chosen groups with its estimate and sigma (a non-preferred member
 /// fitted in place of the preferred one, or alone when that is singular).
-fn named(cx: &Context, chosen: &Candidate) -> Result<(Vec<Effect>, Vec<f64>, Vec<f64>)> {
+fn named(cx: &Context, chosen: &Candidate) -> Result<Named> {
     let (mut effects, mut estimate, mut sigma) = (Vec::new(), Vec::new(), Vec::new());
     for (slot, &g) in chosen.groups.iter().enumerate() {
         for (m, &member) in cx.groups[g].members.iter().enumerate() {
@@ -352,7 +370,11 @@ fn named(cx: &Context, chosen: &Candidate) -> Result<(Vec<Effect>, Vec<f64>, Vec
             sigma.push(fit.sigma[at]);
         }
     }
-    Ok((effects, estimate, sigma))
+    Ok(Named {
+        effects,
+        estimate,
+        sigma,
+    })
 }
 
 #[cfg(test)]

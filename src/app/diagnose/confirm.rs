@@ -1,0 +1,103 @@
+//! The verdict on the re-observed gap (docs/diagnosis.md, "Confirmed on the survey observed
+//! again"): an explanation the selection proposes is applied to the pipeline, the survey is
+//! observed again with it (same screening, same navigation model), the same effects are fitted
+//! again there and added until the estimate moves by less than [`SETTLED_SIGMA`] of its sigma
+//! (at most [`MAX_ROUNDS`] rounds), and the verdict is taken on the held-out gap of that last
+//! observation, not on a linear prediction of it.
+
+use super::fit::Normals;
+use super::metrics::{chi2_sf, gap, Gap};
+use super::model::{Effect, ObservationSet};
+use super::observe::{self, References};
+use super::reprocess;
+use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
+use crate::Result;
+use std::path::Path;
+
+/// The estimate has settled when the re-fit at the re-observed state moves every effect by
+/// less than this many of its sigmas.
+pub const SETTLED_SIGMA: f64 = 0.1;
+/// Most rounds of correction and observation (each re-processes the survey).
+pub const MAX_ROUNDS: usize = 3;
+
+/// What to apply and where to judge it.
+pub struct Proposal<'a> {
+    /// The explanation's effects (each group's preferred member) and their estimates.
+    pub applied: Vec<(Effect, f64)>,
+    /// Reference ids fitted on and held out.
+    pub fit_ids: &'a [String],
+    pub held_out_ids: &'a [String],
+}
+
+/// The survey observed again with the settled correction.
+pub struct Confirmation {
+    /// The correction applied in the last round (the proposal plus every re-fit).
+    pub applied: Vec<(Effect, f64)>,
+    /// Its `--set` lines and the corrected pipeline they give.
+    pub set_lines: Vec<String>,
+    pub corrected: LoadedPipeline,
+    /// Rounds run, and the last re-fit's largest move in sigmas.
+    pub rounds: usize,
+    pub last_move_sigma: f64,
+    /// The last observation (screened, navigation model applied) and its held-out references.
+    pub set: ObservationSet,
+    pub held_out: Vec<usize>,
+    /// Held-out gap there, and `P(chi2_n > chi2)` of it.
+    pub after: Gap,
+    pub p_value: f64,
+}
+
+/// Applies `proposal` to `p`, observes `refs` again (`prepare`: the diagnosis' screening and
+/// navigation model) until the estimate settles, and returns the last observation's gap.
+pub fn confirm(
+    p: &LoadedPipeline,
+    refs: &References,
+    cfg: &DiagnoseConfig,
+    out_dir: &Path,
+    proposal: &Proposal,
+    prepare: &dyn Fn(&ObservationSet) -> ObservationSet,
+) -> Result<Confirmation> {
+    let effects: Vec<Effect> = proposal.applied.iter().map(|(e, _)| *e).collect();
+    let mut applied = proposal.applied.clone();
+    let mut rounds = 0;
+    loop {
+        rounds += 1;
+        let set_lines = reprocess::set_lines(&p.config, &applied)?;
+        let corrected = reprocess::corrected(p, &set_lines, out_dir)?;
+        let set = prepare(&observe::observe(&corrected, refs, cfg)?.set);
+        let fit_refs = references_of(&set, proposal.fit_ids);
+        let refit = Normals::of(&set, &fit_refs)?.fit(&effects)?;
+        let last_move_sigma = refit
+            .estimate
+            .iter()
+            .zip(&refit.sigma)
+            .map(|(x, s)| (x / s).abs())
+            .fold(0.0, f64::max);
+        if last_move_sigma < SETTLED_SIGMA || rounds == MAX_ROUNDS {
+            let held_out = references_of(&set, proposal.held_out_ids);
+            let after = gap(&set, &held_out, None)?;
+            let p_value = chi2_sf(after.chi2_per_dof * after.n as f64, after.n);
+            return Ok(Confirmation {
+                applied,
+                set_lines,
+                corrected,
+                rounds,
+                last_move_sigma,
+                set,
+                held_out,
+                after,
+                p_value,
+            });
+        }
+        for ((_, total), x) in applied.iter_mut().zip(&refit.estimate) {
+            *total += x;
+        }
+    }
+}
+
+/// The indices of reference ids `ids` in `set` (ids without observations there are skipped).
+pub fn references_of(set: &ObservationSet, ids: &[String]) -> Vec<usize> {
+    ids.iter()
+        .filter_map(|id| set.reference_ids.iter().position(|r| r == id))
+        .collect()
+}
