@@ -270,7 +270,7 @@ fn run_cell(
                 let d = diagnose_case(&scenario(model, foreign, &c.effects_toml), length, seed);
                 if let Some(d) = &d {
                     println!(
-                        "  {} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} -> {:.3} located {:?}",
+                        "  {} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} -> {:.3} located {:?} nav tau {:.0}/{:.0} s scale {:.2}/{:.2} foreign {}",
                         c.label,
                         serde_json::to_string(&d.verdict).unwrap(),
                         d.effects,
@@ -278,7 +278,12 @@ fn run_cell(
                         d.sigma,
                         d.gap.before.chi2_per_dof,
                         d.gap.after.chi2_per_dof,
-                        d.located_in
+                        d.located_in,
+                        d.nuisance.position_tau_s.value,
+                        d.nuisance.attitude_tau_s.value,
+                        d.nuisance.position_scale.value,
+                        d.nuisance.attitude_scale.value,
+                        d.foreign.set_aside,
                     );
                 }
                 out.push(Outcome {
