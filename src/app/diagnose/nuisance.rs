@@ -43,7 +43,7 @@ const GOLDEN_STEPS: usize = 9;
 /// constant attitude error is a boresight), the prior keeps the pair from running to the
 /// bounds (5000 s and 0.25), where the null model would lose the attitude error the SMRMSG
 /// states and name boresight or heading effects that are navigation error.
-const PRIOR_LOG_SD: [f64; 4] = [1.5, 1.5, 0.5, 0.5];
+const PRIOR_LOG_SD: [f64; 4] = [3.0, 3.0, 0.5, 0.5];
 /// Step of the numerical Hessian in the logarithm of a parameter.
 const HESSIAN_STEP: f64 = 0.05;
 
