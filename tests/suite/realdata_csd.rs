@@ -192,8 +192,13 @@ fn csd_header_and_first_pulse_read_as_pdal_reads_them() {
     assert_eq!(p.time_s, 575644.744_845_639);
     assert_eq!(p.ranges_m(), &[827.356_689_453_125_f32]);
     assert_eq!(p.intensity[0], 384);
-    // PDAL's ScanAngleRank is the scan angle in degrees: -14.555161476135254.
-    assert!(((p.scan_angle_rad as f64).to_degrees() + 14.555_161_476_135_254).abs() < 1e-12);
+    // PDAL's ScanAngleRank is the scan angle in degrees, -14.555161476135254, computed and
+    // stored in f32: within 2e-6 deg (two f32 steps at 14.6 deg, 9.5e-7 each).
+    let scan_deg = (p.scan_angle_rad as f64).to_degrees();
+    assert!(
+        (scan_deg + 14.555_161_476_135_254).abs() <= 2e-6,
+        "{scan_deg}"
+    );
     // Every pulse reads (finite, a latitude, a longitude within one turn).
     let pulses: Vec<CsdPulse> = f.pulses().collect::<Result<_, _>>().unwrap();
     assert!(pulses
