@@ -1,6 +1,6 @@
 //! The one parser of a LAS public header block (LAS 1.0-1.4, and LAZ/COPC, whose header is
-//! stored uncompressed), shared by [`super::inspect`] (`kinescan info`: what a file says about
-//! itself) and [`super::read`] (`kinescan tpu`: a cloud's records), and the little-endian field
+//! stored uncompressed), shared by `las::inspect` (`kinescan info`: what a file says about
+//! itself) and `las::read` (`kinescan tpu`: a cloud's records), and the little-endian field
 //! readers and record framing constants both use. It only decodes; each caller decides what it
 //! accepts (versions, formats, compression) and names the file in its errors.
 
