@@ -158,7 +158,7 @@ impl ReturnTerms {
 
     /// [`Self::new`] with the `(sin, cos)` of alpha and of the corrected beta given.
     #[inline]
-    fn of_trig(
+    pub fn of_trig(
         r_n_to_e: Matrix3<f64>,
         r_b_to_n: Matrix3<f64>,
         lever_arm_b_m: &Vector3<f64>,

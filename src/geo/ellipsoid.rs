@@ -105,8 +105,12 @@ pub fn ecef_to_geodetic(x_e: &Vector3<f64>) -> Geodetic {
 /// Rotation from local North-East-Down `n` at (lat, lon) to ECEF `e`: `x_e = R_n^e x_n` (conventions §3).
 #[inline]
 pub fn r_n_to_e(lat_rad: f64, lon_rad: f64) -> Matrix3<f64> {
-    let (sl, cl) = lat_rad.sin_cos();
-    let (so, co) = lon_rad.sin_cos();
+    r_n_to_e_of_trig(lat_rad.sin_cos(), lon_rad.sin_cos())
+}
+
+/// [`r_n_to_e`] from the `(sin, cos)` of latitude and of longitude.
+#[inline]
+pub fn r_n_to_e_of_trig((sl, cl): (f64, f64), (so, co): (f64, f64)) -> Matrix3<f64> {
     Matrix3::new(
         -sl * co,
         -so,

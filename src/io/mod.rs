@@ -4,6 +4,7 @@ pub mod atomic;
 pub mod config_file;
 pub mod copc;
 pub mod counters;
+pub mod csd;
 pub(crate) mod csv_text;
 pub(crate) mod digest;
 pub(crate) mod direct;

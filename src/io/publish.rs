@@ -303,8 +303,21 @@ pub fn publish_folder<T>(
 /// An exclusive lock on an output stem, held while a run writes and publishes it: the file
 /// `.<stem>.kinescan-lock` beside the output (empty, kept; the lock is the OS's, released when
 /// the process ends however it ends).
+///
+/// The lock file is opened close-on-exec (std opens every file with `O_CLOEXEC`), so a child
+/// process never keeps it past its `exec`. A child forked by another thread holds a copy of
+/// the descriptor between its fork and its exec, and a `flock` lock lasts until the last copy
+/// is closed: dropping the lock therefore unlocks explicitly (`LOCK_UN` acts on the shared
+/// open file, whatever copies exist) before closing.
 pub struct StemLock {
-    _file: File,
+    file: File,
+}
+
+impl Drop for StemLock {
+    fn drop(&mut self) {
+        // An error here leaves the lock to the close below (and to the process's end).
+        let _ = self.file.unlock();
+    }
 }
 
 impl StemLock {
@@ -327,7 +340,7 @@ impl StemLock {
             .open(&path)
             .map_err(|e| Error::io(&path, e))?;
         match file.try_lock() {
-            Ok(()) => Ok(StemLock { _file: file }),
+            Ok(()) => Ok(StemLock { file }),
             Err(std::fs::TryLockError::WouldBlock) => Err(Error::bad_file(
                 what,
                 format!(
@@ -509,5 +522,51 @@ mod tests {
         );
         drop(held);
         StemLock::acquire(&las).unwrap();
+    }
+
+    /// The lock is close-on-exec (a child never inherits it past exec) and a child that holds
+    /// a copy of the descriptor (forked, not yet exec'd) does not keep it after the drop.
+    #[test]
+    fn a_dropped_lock_is_free_even_while_a_forked_child_holds_its_descriptor() {
+        use std::os::fd::AsRawFd;
+        let dir = tempfile::tempdir().unwrap();
+        let las = dir.path().join("day.las");
+        let held = StemLock::acquire(&las).unwrap();
+        // SAFETY: fcntl(F_GETFD) on a descriptor this test owns.
+        let flags = unsafe { libc::fcntl(held.file.as_raw_fd(), libc::F_GETFD) };
+        assert!(
+            flags >= 0 && flags & libc::FD_CLOEXEC != 0,
+            "fd flags {flags}"
+        );
+        let listing = std::process::Command::new("ls")
+            .args(["-l", "/proc/self/fd"])
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&listing.stdout);
+        assert!(
+            listing.status.success() && text.contains("/proc/"),
+            "{text}"
+        );
+        assert!(
+            !text.contains("kinescan-lock"),
+            "a child inherited the lock: {text}"
+        );
+        // SAFETY: the child only calls async-signal-safe functions (sleep, _exit).
+        let child = unsafe { libc::fork() };
+        if child == 0 {
+            unsafe {
+                libc::sleep(3);
+                libc::_exit(0);
+            }
+        }
+        assert!(child > 0, "fork failed");
+        drop(held);
+        let again = StemLock::acquire(&las);
+        // SAFETY: reaping the child forked above.
+        unsafe {
+            libc::kill(child, libc::SIGKILL);
+            libc::waitpid(child, std::ptr::null_mut(), 0);
+        }
+        again.expect("the lock outlived its drop in a forked child");
     }
 }

@@ -321,6 +321,15 @@ impl Propagator {
         }
     }
 
+    /// The same propagator for a scanner whose beams are `u_s(alpha, beta)` in a frame `s'`
+    /// of its own, `x_s = Q x_s'` (a rotating (Palmer) mirror: `app::tpu::scanner`): the
+    /// scanner partials are taken in `s'` (`R_s^b Q`; the returns' terms then carry `x_s'`
+    /// and `R_s^b Q`), the boresight sigmas stay about the axes of the configured `R_s^b`.
+    pub fn with_beam_axes(mut self, q: &Matrix3<f64>) -> Self {
+        self.r_s_to_b *= q;
+        self
+    }
+
     /// Whether [`Self::variances_of`] computes the group variances.
     pub fn with_groups(&self) -> bool {
         self.with_groups

@@ -10,6 +10,7 @@
 
 use crate::common;
 
+use kinescan::io::csd::{CsdFile, CSD_HEADER_BYTES, CSD_PULSE_BYTES};
 use kinescan::io::info::describe;
 use kinescan::io::patches::read_patches;
 use kinescan::io::points::read_control_points;
@@ -44,10 +45,11 @@ enum Parser {
     PipelineToml,
     ScenarioToml,
     DayToml,
+    Csd,
 }
 
 impl Parser {
-    const ALL: [Parser; 9] = [
+    const ALL: [Parser; 10] = [
         Parser::Sbet,
         Parser::Smrmsg,
         Parser::ProfilesBinary,
@@ -57,6 +59,7 @@ impl Parser {
         Parser::PipelineToml,
         Parser::ScenarioToml,
         Parser::DayToml,
+        Parser::Csd,
     ];
 
     fn file_name(self) -> &'static str {
@@ -70,6 +73,7 @@ impl Parser {
             Parser::PipelineToml => "fuzz_pipeline.toml",
             Parser::ScenarioToml => "fuzz_scenario.toml",
             Parser::DayToml => "fuzz_day.toml",
+            Parser::Csd => "fuzz.csd",
         }
     }
 
@@ -103,6 +107,12 @@ impl Parser {
             Parser::DayToml => kinescan::app::day::config::load(path)
                 .map(|_| ())
                 .map_err(e)?,
+            Parser::Csd => {
+                let f = CsdFile::open(path).map_err(e)?;
+                for pulse in f.pulses() {
+                    pulse.map_err(e)?;
+                }
+            }
         }
         Ok(())
     }
@@ -211,10 +221,45 @@ fn make_samples() -> Samples {
         .map(|s| read(root.join(format!("pipelines/scenario_{s}.toml"))))
         .collect();
     let days = day_folder(&dir.join(format!("{:?}", Parser::DayToml)));
+    let mut csd = vec![synthetic_csd(8)];
+    if let Some(real) = common::realdata("fuzz samples") {
+        csd.push(csd_head(&read(real.join("pdal/sample.csd")), 12));
+    }
     let by_parser = vec![
-        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days,
+        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, csd,
     ];
     Samples { dir, by_parser }
+}
+
+/// The header and first `n` pulses of a CSD file, the header's count set to `n`.
+fn csd_head(bytes: &[u8], n: usize) -> Vec<u8> {
+    let mut out = bytes[..CSD_HEADER_BYTES + n * CSD_PULSE_BYTES].to_vec();
+    out[124..128].copy_from_slice(&(n as u32).to_le_bytes());
+    out
+}
+
+/// A valid CSD file of `n` pulses (header fields at their offsets, docs/formats.md).
+fn synthetic_csd(n: usize) -> Vec<u8> {
+    let mut b = vec![0u8; CSD_HEADER_BYTES];
+    b[..4].copy_from_slice(b"CSD\0");
+    b[4..23].copy_from_slice(b"Optech Incorporated");
+    b[104..106].copy_from_slice(&(CSD_HEADER_BYTES as u16).to_le_bytes());
+    b[106..108].copy_from_slice(&1660u16.to_le_bytes());
+    b[124..128].copy_from_slice(&(n as u32).to_le_bytes());
+    b[1154..1162].copy_from_slice(&0.028f64.to_le_bytes());
+    for i in 0..n {
+        let mut p = vec![0u8; CSD_PULSE_BYTES];
+        p[0..8].copy_from_slice(&(575644.7 + i as f64 * 1e-5).to_le_bytes());
+        p[8] = 2;
+        p[9..13].copy_from_slice(&(820.0f32 + i as f32).to_le_bytes());
+        p[13..17].copy_from_slice(&(821.5f32 + i as f32).to_le_bytes());
+        p[33..37].copy_from_slice(&(-0.2f32 + 0.05 * i as f32).to_le_bytes());
+        p[49..57].copy_from_slice(&0.6376f64.to_le_bytes());
+        p[57..65].copy_from_slice(&(-1.44 - std::f64::consts::TAU).to_le_bytes());
+        p[65..69].copy_from_slice(&1140.0f32.to_le_bytes());
+        b.extend(p);
+    }
+    b
 }
 
 /// The first `n` records of a binary profile file with the header's record count set to `n`

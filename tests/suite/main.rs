@@ -37,6 +37,7 @@ mod laz_output;
 mod pipeline_roundtrip;
 mod pipelines;
 mod realdata;
+mod realdata_csd;
 mod realdata_leeward;
 mod safety_collisions;
 mod safety_day;

@@ -147,6 +147,75 @@ fn recovered_range_and_mirror_angle_match_runs() {
     assert!(worst <= 1e-4, "{worst}");
 }
 
+/// The rotating (Palmer) mirror kind end to end: `run` writes a cloud whose beams lie on a
+/// Palmer cone (its profile cone `alpha0 = 90 deg - theta` behind the boresight `R_s^b Q`, which
+/// is the Palmer's own equation with the mounting `R_s^b`); `tpu` with `rotating_mirror`,
+/// `theta` and `R_s^b` inverts every point back onto its cone with `run`'s range (to the LAS
+/// quantisation); with another half-angle every point is off the cone.
+#[test]
+fn rotating_mirror_recovers_a_palmer_cloud() {
+    use kinescan::app::tpu::scanner::RotatingMirror;
+    use kinescan::geo::rotations::{r_zyx, zyx_angles};
+    let dir = tempfile::tempdir().unwrap();
+    write_trajectory(dir.path());
+    write_profiles(&dir.path().join("pass.ksprof"), 20);
+    let pipeline = write_pipeline(dir.path(), "traj.smrmsg", FULL);
+    // A mounting that tilts the cone's axis 30 deg off the body's vertical (away from the
+    // ZYX gimbal lock of R_s^b Q) and a 20 deg half-angle.
+    let mount_deg = [30.0, -5.0, 10.0];
+    let r = mount_deg.map(f64::to_radians);
+    let composite = r_zyx(r[0], r[1], r[2]) * RotatingMirror::axes();
+    let (bx, by, bz) = zyx_angles(&composite);
+    let deg = |a: f64| a.to_degrees();
+    let run_set = [
+        format!(
+            "sensor.boresight_deg=[{}, {}, {}]",
+            deg(bx),
+            deg(by),
+            deg(bz)
+        ),
+        "sensor.alpha0_deg=70.0".to_string(),
+        "output.mirror_angle_dimension=false".to_string(),
+    ];
+    let report = run(&config::load(&pipeline, &run_set).unwrap(), &quiet_run()).unwrap();
+    assert_eq!(report.totals.rejected_total(), 0);
+    let cloud = dir.path().join("out/cloud.las");
+    let tpu_set = |half: f64| {
+        vec![
+            format!(
+                "sensor.boresight_deg=[{}, {}, {}]",
+                mount_deg[0], mount_deg[1], mount_deg[2]
+            ),
+            "tpu.scanner=\"rotating_mirror\"".to_string(),
+            format!("tpu.cone_half_angle_deg={half}"),
+        ]
+    };
+    let loaded = config::load_tpu(&pipeline, &tpu_set(20.0)).unwrap();
+    let points = kinescan::app::tpu::inspect(&loaded, &cloud, 0..3000).unwrap();
+    let (_, run_values) = read_extra(&cloud);
+    assert_eq!(points.len(), 3000);
+    let (mut worst_range, mut worst_off) = (0.0f64, 0.0f64);
+    for (p, v) in points.iter().zip(&run_values) {
+        let p = p.as_ref().unwrap();
+        raise_max(
+            &mut worst_range,
+            (p.recovered.range_m - f64::from(v[0])).abs(),
+        );
+        raise_max(&mut worst_off, p.recovered.off_cone_m);
+        assert!(p.variances.var_m2.iter().all(|v| *v > 0.0), "{p:?}");
+    }
+    eprintln!("palmer: worst range {worst_range:e} m, worst off cone {worst_off:e} m");
+    // LAS quantisation: 0.87e-4 m of position, plus the f32 range (<= 200 m: 1e-5 m).
+    assert!(worst_range <= 1e-4, "{worst_range}");
+    assert!(worst_off <= 2e-4, "{worst_off}");
+    // The same cloud seen as a 19 deg cone: 1 deg off, every point beyond 1 cm at >= 1 m.
+    let loaded = config::load_tpu(&pipeline, &tpu_set(19.0)).unwrap();
+    let points = kinescan::app::tpu::inspect(&loaded, &cloud, 0..3000).unwrap();
+    assert!(points
+        .iter()
+        .all(|p| matches!(p, Err(PointReject::OffCone))));
+}
+
 /// A LAS without GPS time, without CRS, with times outside the SBET, with a wrong GPS week,
 /// a truncated LAZ: clear errors naming the file; points whose recovered range is negative:
 /// counted (and named) or, with strictness "fail", an error naming the point. Nothing is

@@ -167,12 +167,7 @@ fn stages(
     let sensor = c.sensor.sensor();
     let scanner = scanner::scanner_of(&c.tpu, sensor.alpha0_rad);
     let recoverer = opened.recoverer(p, scanner.as_ref());
-    let propagator = Propagator::new(
-        u.inputs(),
-        u.write_shares,
-        sensor.lever_arm_b_m,
-        sensor.r_s_to_b,
-    );
+    let propagator = propagator_of(u, &sensor, scanner.as_ref());
     let fill = schema.fill(0);
     let job = Job {
         input,
@@ -342,12 +337,7 @@ pub fn inspect(
     let sensor = c.sensor.sensor();
     let scanner = scanner::scanner_of(&c.tpu, sensor.alpha0_rad);
     let recoverer = opened.recoverer(p, scanner.as_ref());
-    let propagator = Propagator::new(
-        u.inputs(),
-        u.write_shares,
-        sensor.lever_arm_b_m,
-        sensor.r_s_to_b,
-    );
+    let propagator = propagator_of(u, &sensor, scanner.as_ref());
     let mut cursors = recoverer
         .cursors()
         .ok_or_else(|| Error::Invalid("tpu needs inputs.smrmsg".into()))?;
@@ -371,6 +361,24 @@ pub fn inspect(
                 })
         })
         .collect())
+}
+
+/// `run`'s propagator for the sensor, in the scanner kind's beam frame.
+fn propagator_of(
+    u: &crate::pipeline::config::UncertaintyConfig,
+    sensor: &crate::georef::Sensor,
+    scanner: &dyn scanner::ScannerGeometry,
+) -> Propagator {
+    let p = Propagator::new(
+        u.inputs(),
+        u.write_shares,
+        sensor.lever_arm_b_m,
+        sensor.r_s_to_b,
+    );
+    match scanner.beam_axes() {
+        Some(q) => p.with_beam_axes(&q),
+        None => p,
+    }
 }
 
 /// LAZ and COPC output compress the LAS copy (`io::laz`, `io::copc`), which needs LAS 1.4

@@ -7,8 +7,10 @@
 //! propagation ([`ReturnInputs`]) for it: the same terms, the same frames, the same sigmas.
 
 use super::scanner::{Misfit, ScannerGeometry};
+use crate::geo::ellipsoid::r_n_to_e_of_trig;
 use crate::geo::local::{LocalUnprojection, UNPROJECT_RADIUS_M};
 use crate::geo::projection::MapFrame;
+use crate::geo::rotations::SinCosNear;
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::las::GpsTimeConvention;
 use crate::pipeline::config::TimeConfig;
@@ -16,7 +18,7 @@ use crate::timing::{Mirror, TimeModel};
 use crate::trajectory::{NavGap, PoseCursor, SigmaCursor, Trajectory};
 use crate::uncertainty::model::FrameCache;
 use crate::uncertainty::propagate::ReturnInputs;
-use nalgebra::Vector3;
+use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 /// Why a point gets no sigma.
@@ -193,6 +195,14 @@ pub struct RecoverCursors<'a> {
     sigmas: SigmaCursor<'a>,
     frames: FrameCache,
     unproject: Option<LocalUnprojection>,
+    /// `(sin, cos)` of the IMU's latitude and longitude, which move little between points.
+    lat: SinCosNear,
+    lon: SinCosNear,
+    /// `(sin, cos)` of the scanner kind's alpha0.
+    sin_cos_alpha0: (f64, f64),
+    /// The kind's beam frame: `Q^T` (None: the scanner frame) and `R_s^b Q`.
+    to_beam: Option<Matrix3<f64>>,
+    r_beam_to_b: Matrix3<f64>,
 }
 
 /// Map distance (m) a point may be from the unprojection's centre before it is re-expanded.
@@ -206,6 +216,12 @@ impl<'a> Recoverer<'a> {
             sigmas: self.traj.sigma_cursor()?,
             frames: FrameCache::new(self.frame),
             unproject: None,
+            lat: SinCosNear::default(),
+            lon: SinCosNear::default(),
+            sin_cos_alpha0: self.scanner.alpha0_rad().sin_cos(),
+            to_beam: self.scanner.beam_axes().map(|q| q.transpose()),
+            r_beam_to_b: self.sensor.r_s_to_b
+                * self.scanner.beam_axes().unwrap_or_else(Matrix3::identity),
         })
     }
 
@@ -241,10 +257,13 @@ impl<'a> Recoverer<'a> {
         let pose = c.poses.at(t_s)?;
         let nav_sigma = c.sigmas.at(t_s)?;
         let x_e = self.to_ecef(x_map, c);
-        let r_n_to_e = crate::geo::ellipsoid::r_n_to_e(pose.nav.lat_rad, pose.nav.lon_rad);
+        let r_n_to_e = r_n_to_e_of_trig(c.lat.at(pose.nav.lat_rad), c.lon.at(pose.nav.lon_rad));
         let r_b_to_n = *pose.q_b_to_n.to_rotation_matrix().matrix();
         let a_b = (r_n_to_e * r_b_to_n).transpose() * (x_e - pose.nav.r_e_m);
-        let x_s = self.sensor.r_s_to_b.transpose() * (a_b - self.sensor.lever_arm_b_m);
+        let mut x_s = self.sensor.r_s_to_b.transpose() * (a_b - self.sensor.lever_arm_b_m);
+        if let Some(q_t) = &c.to_beam {
+            x_s = q_t * x_s;
+        }
         let beam = self.scanner.fit(&x_s)?;
         let s = &self.sensor;
         let range_m = beam.range_total_m / (1.0 + s.range_scale_ppm * 1e-6) - s.range_zero_m;
@@ -256,13 +275,19 @@ impl<'a> Recoverer<'a> {
             return Err(PointReject::RangeOutOfLimits);
         }
         let beta_recorded = beam.beta_rad - s.encoder_offset_rad;
-        let terms = ReturnTerms::new(
+        // (sin, cos) of beta = atan2(-y, z) straight from x_s (no trigonometry).
+        let yz = (x_s.y * x_s.y + x_s.z * x_s.z).sqrt();
+        let sin_cos_beta = if yz > 0.0 {
+            (-x_s.y / yz, x_s.z / yz)
+        } else {
+            beam.beta_rad.sin_cos()
+        };
+        let terms = ReturnTerms::of_trig(
             r_n_to_e,
             r_b_to_n,
             &s.lever_arm_b_m,
-            &s.r_s_to_b,
-            self.scanner.alpha0_rad(),
-            beam.beta_rad,
+            &c.r_beam_to_b,
+            (c.sin_cos_alpha0, sin_cos_beta),
             beam.range_total_m,
         );
         let (r_n_to_map, dtheta) = c.frames.frames(&x_e, &pose.nav);

@@ -7,9 +7,8 @@ use las::raw::vlr::RecordLength;
 use las::Version;
 
 /// Bytes of the LAS 1.4 public header block.
-pub(super) const HEADER_SIZE: usize = 375;
-const VLR_HEADER_SIZE: usize = 54;
-const EXTRA_BYTES_DESCRIPTOR_LEN: usize = 192;
+pub(super) use super::public_header::HEADER_1_4 as HEADER_SIZE;
+use super::public_header::{EXTRA_BYTES_DESCRIPTOR_LEN, VLR_HEADER_LEN as VLR_HEADER_SIZE};
 const GLOBAL_ENCODING_GPS_ADJUSTED: u16 = 1 << 0;
 const GLOBAL_ENCODING_WKT: u16 = 1 << 4;
 

@@ -9,15 +9,11 @@
 use std::io::{Read, Seek, SeekFrom};
 use std::path::Path;
 
+use super::public_header::{
+    record_ids, text, u16_at, u64_at, PublicHeader, EVLR_HEADER_LEN as EVLR_HEADER,
+    EXTRA_BYTES_DESCRIPTOR_LEN as EXTRA_BYTES_DESCRIPTOR, HEADER_1_4, VLR_HEADER_LEN as VLR_HEADER,
+};
 use crate::{Error, Result};
-
-/// Bytes of a LAS 1.4 public header (earlier versions have shorter ones).
-const HEADER_1_4: usize = 375;
-/// Bytes of a VLR header and of an EVLR header.
-const VLR_HEADER: usize = 54;
-const EVLR_HEADER: usize = 60;
-/// Bytes of one Extra Bytes descriptor.
-const EXTRA_BYTES_DESCRIPTOR: usize = 192;
 
 /// One Extra Bytes dimension as its descriptor states it.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -85,23 +81,6 @@ pub struct LasHeaderInfo {
     pub vlrs: Vec<(String, u16)>,
 }
 
-fn u16_at(b: &[u8], i: usize) -> u16 {
-    u16::from_le_bytes([b[i], b[i + 1]])
-}
-fn u32_at(b: &[u8], i: usize) -> u32 {
-    u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"))
-}
-fn u64_at(b: &[u8], i: usize) -> u64 {
-    u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"))
-}
-fn f64_at(b: &[u8], i: usize) -> f64 {
-    f64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"))
-}
-fn text(b: &[u8]) -> String {
-    let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
-    String::from_utf8_lossy(&b[..end]).trim().to_string()
-}
-
 /// Whether `bytes` start like a LAS file (`LASF`).
 pub fn is_las(bytes: &[u8]) -> bool {
     bytes.starts_with(b"LASF")
@@ -114,47 +93,30 @@ pub fn read_header(path: &Path) -> Result<LasHeaderInfo> {
     let size = file.metadata().map_err(|e| Error::io(path, e))?.len();
     let mut head = vec![0u8; HEADER_1_4.min(size as usize)];
     file.read_exact(&mut head).map_err(|e| Error::io(path, e))?;
-    if head.len() < 227 || !is_las(&head) {
+    let Some(h) = PublicHeader::parse(&head) else {
         return Err(bad(
             "not a LAS file: no `LASF` signature and 227-byte header".into(),
         ));
-    }
-    let version = (head[24], head[25]);
-    let header_size = usize::from(u16_at(&head, 94));
-    let point_offset = u64::from(u32_at(&head, 96));
-    let vlr_count = u32_at(&head, 100);
-    let format_byte = head[104];
-    let four = version >= (1, 4) && header_size >= HEADER_1_4 && head.len() >= HEADER_1_4;
-    let xyz = |at: usize| [0, 1, 2].map(|k| f64_at(&head, at + 8 * k));
-    let (max, min) = (
-        [f64_at(&head, 179), f64_at(&head, 195), f64_at(&head, 211)],
-        [f64_at(&head, 187), f64_at(&head, 203), f64_at(&head, 219)],
-    );
-    let legacy: Vec<u64> = (0..5)
-        .map(|k| u64::from(u32_at(&head, 111 + 4 * k)))
-        .collect();
-    let (points, points_by_return) = if four {
-        let by_return = (0..15).map(|k| u64_at(&head, 255 + 8 * k)).collect();
-        (u64_at(&head, 247), by_return)
-    } else {
-        (u64::from(u32_at(&head, 107)), legacy)
     };
+    let header_size = h.header_size;
+    let point_offset = h.offset_to_points;
+    let vlr_count = h.vlr_count;
     let mut info = LasHeaderInfo {
-        version,
-        point_format: format_byte & 0x3f,
-        record_length: u16_at(&head, 105),
-        compressed: format_byte & 0x80 != 0,
+        version: h.version,
+        point_format: h.point_format(),
+        record_length: h.record_len,
+        compressed: h.compressed(),
         copc: false,
-        points,
-        points_by_return,
-        scale: xyz(131),
-        offset: xyz(155),
-        min,
-        max,
-        system: text(&head[26..58]),
-        software: text(&head[58..90]),
-        created: (u16_at(&head, 90), u16_at(&head, 92)),
-        adjusted_gps_time: u16_at(&head, 6) & 1 != 0,
+        points: h.point_count(),
+        points_by_return: h.points_by_return(),
+        scale: h.scale,
+        offset: h.offset,
+        min: h.min,
+        max: h.max,
+        system: h.system.clone(),
+        software: h.software.clone(),
+        created: h.created,
+        adjusted_gps_time: h.global_encoding & 1 != 0,
         crs: None,
         extra_dims: Vec::new(),
         vlrs: Vec::new(),
@@ -182,25 +144,27 @@ pub fn read_header(path: &Path) -> Result<LasHeaderInfo> {
                  truncated or corrupt header"
             )));
         }
-        let h = read_at(at, VLR_HEADER)?;
-        let len = usize::from(u16_at(&h, 20));
+        let vh = read_at(at, VLR_HEADER)?;
+        let len = usize::from(u16_at(&vh, 20));
         let body = read_at(at + VLR_HEADER as u64, len)?;
-        records.push((text(&h[2..18]), u16_at(&h, 18), body));
+        let (user, id) = record_ids(&vh);
+        records.push((user, id, body));
         at += (VLR_HEADER + len) as u64;
     }
-    if four {
-        let (mut at, count) = (u64_at(&head, 235), u32_at(&head, 243));
+    if h.las14.is_some() {
+        let (mut at, count) = h.evlrs();
         for k in 0..count {
             if at == 0 {
                 return Err(bad(format!(
                     "EVLR {k} of {count}: no EVLR start in the header"
                 )));
             }
-            let h = read_at(at, EVLR_HEADER)?;
-            let len = u64_at(&h, 20);
+            let eh = read_at(at, EVLR_HEADER)?;
+            let len = u64_at(&eh, 20);
+            let (user, id) = record_ids(&eh);
             // Only the records read below are loaded (the COPC hierarchy is skipped).
             let wanted = matches!(
-                (text(&h[2..18]).as_str(), u16_at(&h, 18)),
+                (user.as_str(), id),
                 ("LASF_Projection", 2112) | ("LASF_Spec", 4)
             );
             let body = if wanted {
@@ -211,7 +175,7 @@ pub fn read_header(path: &Path) -> Result<LasHeaderInfo> {
             } else {
                 Vec::new()
             };
-            records.push((text(&h[2..18]), u16_at(&h, 18), body));
+            records.push((user, id, body));
             at = at.saturating_add(EVLR_HEADER as u64).saturating_add(len);
         }
     }

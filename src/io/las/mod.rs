@@ -22,6 +22,7 @@ mod encode;
 mod header;
 pub mod inspect;
 mod layout;
+mod public_header;
 pub mod read;
 
 pub use encode::{encode_extra, encode_points, stats_of_records, ChunkStats, LasPoint};

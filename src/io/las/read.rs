@@ -4,16 +4,16 @@
 //! record's coordinates and time. LAZ input is decompressed (the `laz` crate) to a LAS file
 //! first ([`decompress_laz`]). Errors name the file and, for records, the record.
 
+pub use super::public_header::EXTRA_BYTES_DESCRIPTOR_LEN;
+use super::public_header::{
+    f64_at, record_ids, text, u16_at, u64_at, PublicHeader, EVLR_HEADER_LEN, VLR_HEADER_LEN,
+};
 use super::{GpsTimeConvention, SECONDS_PER_GPS_WEEK};
 use crate::io::atomic::AtomicFile;
 use crate::{Error, Result};
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-/// Bytes of an Extra Bytes descriptor (LAS 1.4 R15 Table 24).
-pub const EXTRA_BYTES_DESCRIPTOR_LEN: usize = 192;
-const VLR_HEADER_LEN: usize = 54;
-const EVLR_HEADER_LEN: usize = 60;
 /// Global encoding bit 0: GPS time is adjusted standard GPS time.
 const ADJUSTED_TIME_BIT: u16 = 1;
 
@@ -112,23 +112,6 @@ pub fn gps_time_offset(format: u8) -> Option<usize> {
     }
 }
 
-fn u16_at(b: &[u8], i: usize) -> u16 {
-    u16::from_le_bytes([b[i], b[i + 1]])
-}
-fn u32_at(b: &[u8], i: usize) -> u32 {
-    u32::from_le_bytes(b[i..i + 4].try_into().expect("4 bytes"))
-}
-fn u64_at(b: &[u8], i: usize) -> u64 {
-    u64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"))
-}
-fn f64_at(b: &[u8], i: usize) -> f64 {
-    f64::from_le_bytes(b[i..i + 8].try_into().expect("8 bytes"))
-}
-fn text(b: &[u8]) -> String {
-    let end = b.iter().position(|&c| c == 0).unwrap_or(b.len());
-    String::from_utf8_lossy(&b[..end]).trim().to_string()
-}
-
 /// Whether `path` is a LAZ file (LAS signature with a compressed point format).
 pub fn is_laz(path: &Path) -> Result<bool> {
     let mut head = [0u8; 105];
@@ -156,19 +139,19 @@ impl LasInput {
     fn parse(path: &Path, map: memmap2::Mmap) -> Result<LasInput> {
         let bad = |p: String| Error::bad_file(path, p);
         let b = &map[..];
-        if b.len() < 227 || &b[..4] != b"LASF" {
+        let Some(h) = PublicHeader::parse(b) else {
             return Err(bad(
                 "not a LAS file (no LASF signature or header shorter than 227 bytes)".into(),
             ));
-        }
-        let version = (b[24], b[25]);
+        };
+        let version = h.version;
         if version.0 != 1 || !(2..=4).contains(&version.1) {
             return Err(bad(format!(
                 "LAS {}.{}: LAS 1.2 to 1.4 are read",
                 version.0, version.1
             )));
         }
-        let header_size = usize::from(u16_at(b, 94));
+        let header_size = h.header_size;
         let min_header = match version.1 {
             2 => 227,
             3 => 235,
@@ -180,36 +163,25 @@ impl LasInput {
                 version.1
             )));
         }
-        let raw_format = b[104];
-        if raw_format & 0xC0 != 0 {
+        if h.compressed() {
             return Err(bad("compressed (LAZ) point data: decompress first".into()));
         }
-        let point_format = raw_format;
+        let point_format = h.format_byte;
         let core = core_record_len(point_format).ok_or_else(|| {
             bad(format!(
                 "point format {point_format}: formats 0 to 10 are read"
             ))
         })?;
-        let record_len = usize::from(u16_at(b, 105));
+        let record_len = usize::from(h.record_len);
         if record_len < core {
             return Err(bad(format!(
                 "record length {record_len} B below the {core} B of point format {point_format}"
             )));
         }
-        let offset_to_points = u32_at(b, 96) as usize;
-        let legacy_count = u64::from(u32_at(b, 107));
-        let (point_count, evlr_start, evlr_count) = if version.1 >= 4 {
-            let n = u64_at(b, 247);
-            (
-                if n == 0 { legacy_count } else { n },
-                u64_at(b, 235),
-                u32_at(b, 243),
-            )
-        } else {
-            (legacy_count, 0, 0)
-        };
-        let scale = [f64_at(b, 131), f64_at(b, 139), f64_at(b, 147)];
-        let offset = [f64_at(b, 155), f64_at(b, 163), f64_at(b, 171)];
+        let offset_to_points = h.offset_to_points as usize;
+        let point_count = h.point_count();
+        let (evlr_start, evlr_count) = h.evlrs();
+        let (scale, offset) = (h.scale, h.offset);
         if scale.iter().any(|s| !(s.is_finite() && *s != 0.0))
             || offset.iter().any(|o| !o.is_finite())
         {
@@ -218,7 +190,7 @@ impl LasInput {
         // VLRs.
         let mut vlrs = Vec::new();
         let mut at = header_size;
-        for k in 0..u32_at(b, 100) {
+        for k in 0..h.vlr_count {
             if at + VLR_HEADER_LEN > offset_to_points {
                 return Err(bad(format!(
                     "VLR {k} runs past the point data offset {offset_to_points}"
@@ -231,9 +203,10 @@ impl LasInput {
                     "VLR {k} ({len} B) runs past the point data offset"
                 )));
             }
+            let (user_id, record_id) = record_ids(&b[at..]);
             vlrs.push(VlrSpan {
-                user_id: text(&b[at + 2..at + 18]),
-                record_id: u16_at(b, at + 18),
+                user_id,
+                record_id,
                 bytes: at..end,
                 payload: at + VLR_HEADER_LEN..end,
             });
@@ -263,9 +236,10 @@ impl LasInput {
                 .filter(|&e| e <= b.len());
             let end = end
                 .ok_or_else(|| bad(format!("EVLR {k} ({len} B) runs past the end of the file")))?;
+            let (user_id, record_id) = record_ids(&b[at..]);
             evlrs.push(VlrSpan {
-                user_id: text(&b[at + 2..at + 18]),
-                record_id: u16_at(b, at + 18),
+                user_id,
+                record_id,
                 bytes: at..end,
                 payload: at + EVLR_HEADER_LEN..end,
             });
@@ -281,7 +255,7 @@ impl LasInput {
             point_count,
             scale,
             offset,
-            global_encoding: u16_at(b, 6),
+            global_encoding: h.global_encoding,
             vlrs,
             evlrs,
             extra_dims: Vec::new(),
@@ -503,32 +477,23 @@ pub fn decompress_laz(laz: &Path, las: &Path) -> Result<()> {
     let map = unsafe { memmap2::Mmap::map(&file) }.map_err(|e| Error::io(laz, e))?;
     let b = &map[..];
     let bad = |p: String| Error::bad_file(laz, p);
-    if b.len() < 227 || &b[..4] != b"LASF" {
+    let Some(h) = PublicHeader::parse(b) else {
         return Err(bad("not a LAZ file (no LASF signature)".into()));
-    }
-    let header_size = usize::from(u16_at(b, 94));
-    let offset_to_points = u32_at(b, 96) as usize;
-    let minor = b[25];
+    };
+    let header_size = h.header_size;
+    let offset_to_points = h.offset_to_points as usize;
     if header_size > b.len() || offset_to_points > b.len() || offset_to_points < header_size {
         return Err(bad("truncated or corrupt header".into()));
     }
-    let record_len = usize::from(u16_at(b, 105));
-    let legacy_count = u64::from(u32_at(b, 107));
-    let (count, evlr_start, evlr_count) = if minor >= 4 && header_size >= 375 {
-        let n = u64_at(b, 247);
-        (
-            if n == 0 { legacy_count } else { n },
-            u64_at(b, 235) as usize,
-            u32_at(b, 243),
-        )
-    } else {
-        (legacy_count, 0, 0)
-    };
+    let record_len = usize::from(h.record_len);
+    let count = h.point_count();
+    let (evlr_start, evlr_count) = h.evlrs();
+    let evlr_start = evlr_start as usize;
     // VLRs: keep all but laszip's.
     let mut kept = Vec::new();
     let mut laz_vlr = None;
     let mut at = header_size;
-    for k in 0..u32_at(b, 100) {
+    for k in 0..h.vlr_count {
         if at + VLR_HEADER_LEN > offset_to_points {
             return Err(bad(format!("VLR {k} runs past the point data offset")));
         }
@@ -537,7 +502,7 @@ pub fn decompress_laz(laz: &Path, las: &Path) -> Result<()> {
         if end > offset_to_points {
             return Err(bad(format!("VLR {k} runs past the point data offset")));
         }
-        if text(&b[at + 2..at + 18]) == "laszip encoded" && u16_at(b, at + 18) == 22204 {
+        if record_ids(&b[at..]) == ("laszip encoded".to_string(), 22204) {
             laz_vlr = Some(
                 laz::LazVlr::from_buffer(&b[at + VLR_HEADER_LEN..end])
                     .map_err(|e| bad(format!("laszip VLR: {e}")))?,

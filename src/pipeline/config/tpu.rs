@@ -24,13 +24,17 @@ pub enum ScannerKind {
     /// An airborne oscillating mirror: beams in the plane `alpha = alpha0` (usually 0), the
     /// mirror angle within `+-max_scan_angle_deg` of nadir (the scanner's z axis).
     OscillatingMirror,
+    /// An airborne rotating (Palmer) mirror: beams on the cone of half-angle
+    /// `cone_half_angle_deg` about the scanner's z axis (nadir with the identity boresight),
+    /// any rotation angle (0 forward, +90 deg right).
+    RotatingMirror,
 }
 
 /// `[tpu]`: how `kinescan tpu` checks that a cloud fits the trajectory and the sensor.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct TpuConfig {
-    /// The scanner kind (`profile` or `oscillating_mirror`).
+    /// The scanner kind (`profile`, `oscillating_mirror` or `rotating_mirror`).
     #[serde(default)]
     pub scanner: ScannerKind,
     /// Half field of view of an oscillating mirror (deg): a recovered mirror angle beyond it
@@ -41,6 +45,9 @@ pub struct TpuConfig {
     /// alpha0|`); a point further off is a misfit.
     #[serde(default = "default_cone_tolerance_m")]
     pub cone_tolerance_m: f64,
+    /// Half-angle (deg) of a rotating (Palmer) mirror's cone about the scanner's z axis.
+    #[serde(default = "default_cone_half_angle_deg")]
+    pub cone_half_angle_deg: f64,
 }
 
 impl Default for TpuConfig {
@@ -49,6 +56,7 @@ impl Default for TpuConfig {
             scanner: ScannerKind::default(),
             max_scan_angle_deg: default_max_scan_angle_deg(),
             cone_tolerance_m: default_cone_tolerance_m(),
+            cone_half_angle_deg: default_cone_half_angle_deg(),
         }
     }
 }
@@ -61,6 +69,11 @@ impl TpuConfig {
             let problem = format!("must be at most 90 deg, got {}", self.max_scan_angle_deg);
             return Err(refuse("tpu.max_scan_angle_deg", problem));
         }
+        let half = self.cone_half_angle_deg;
+        if !(half > 0.0 && half < 90.0) {
+            let problem = format!("must be above 0 and below 90 deg, got {half}");
+            return Err(refuse("tpu.cone_half_angle_deg", problem));
+        }
         Ok(())
     }
 }
@@ -70,6 +83,9 @@ fn default_max_scan_angle_deg() -> f64 {
 }
 fn default_cone_tolerance_m() -> f64 {
     0.01
+}
+fn default_cone_half_angle_deg() -> f64 {
+    15.0
 }
 
 /// `[inputs]` as `tpu` reads it: `profiles` optional (not read).
