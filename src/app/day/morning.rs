@@ -203,8 +203,12 @@ fn pass_file<'a>(r: &'a DayReport, name: &str) -> Option<&'a super::OutputFile> 
 }
 
 fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
-    let mut w = Vec::new();
-    for p in &r.passes {
+    let mut w: Vec<String> = r
+        .passes
+        .iter()
+        .filter_map(|p| Some(format!("pass {} FAILED: {}", p.name, p.failed.as_ref()?)))
+        .collect();
+    for p in r.passes.iter().filter(|p| p.failed.is_none()) {
         // No echo (open sky) is not a fault of the data; every other reason is.
         let missing = p
             .counts
@@ -386,10 +390,13 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
             p.trajectory.gaps_s.len().to_string(),
             mm(sigma.and_then(|s| s.sigma_z_median_m)),
             mm(sigma.and_then(|s| s.thu95_median_m)),
-            file.map_or("-".into(), |f| {
-                let name = f.path.file_name().unwrap_or_default().to_string_lossy();
-                format!("{name} ({})", size(f.bytes))
-            }),
+            file.map_or_else(
+                || missing_file(p),
+                |f| {
+                    let name = f.path.file_name().unwrap_or_default().to_string_lossy();
+                    format!("{name} ({})", size(f.bytes))
+                },
+            ),
             file.map_or("-".into(), |f| {
                 format!("{:.0} x {:.0}", f.max[0] - f.min[0], f.max[1] - f.min[1])
             }),
@@ -417,6 +424,14 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
         String::new(),
     ]);
     t
+}
+
+/// The file cell of a pass without a file of its own: not published (failed), or in tiles.
+fn missing_file(p: &super::PassReport) -> String {
+    match p.failed {
+        Some(_) => "not published (failed)".into(),
+        None => "-".into(),
+    }
 }
 
 /// The day's files (listed up to [`TILES_LISTED`], else summarised): points, size, extent.
