@@ -40,7 +40,8 @@ pub fn day(a: &DayArgs, quiet: bool) -> Result<()> {
     };
     let opts = RunOptions {
         threads: a.threads,
-        progress: false,
+        // Per pass, drawn on stderr only when it is a terminal (crate::progress).
+        progress: !quiet,
         ..RunOptions::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()

@@ -172,11 +172,24 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             ))
         })?],
     };
+    let mut ctx = units::UnitContext {
+        day: &day,
+        plan: &plan,
+        opts,
+        bar: indicatif::ProgressBar::hidden(),
+    };
+    let mut bar_pass = None;
     for unit in pending {
         if done.contains_key(&unit.id) {
             continue;
         }
         crate::interrupt::check()?;
+        if bar_pass != Some(unit.pass) {
+            ctx.bar.finish();
+            let what = "georeferencing returns";
+            ctx.bar = pass_bar(&day, &plan, unit.pass, &done, what, opts);
+            bar_pass = Some(unit.pass);
+        }
         let pass = match &mut prepared[unit.pass] {
             Some(p) => p,
             slot => slot.insert(plan::prepare_pass(&day, unit.pass)?),
@@ -187,9 +200,10 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             (Step::All, Layout::PerPass) => Target::in_order(&plan, unit, &done),
             _ => Target::OwnFile,
         };
-        let entry = units::run_unit(&day, &plan, unit, None, pass, target, opts)?;
+        let entry = units::run_unit(&ctx, unit, None, pass, target)?;
         done.insert(unit.id.clone(), entry);
     }
+    ctx.bar.finish();
     timings.insert("units".to_string(), started.elapsed().as_secs_f64());
     if matches!(step, Step::Unit(_)) {
         return Ok(None);
@@ -214,6 +228,26 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
     };
     let report = publish(&day, &plan, &run, timings, diagnosis, started)?;
     Ok(Some(report))
+}
+
+/// The progress bar of pass `pass` doing `what`: the returns of its units not `done` (hidden
+/// without `opts.progress` or when stderr is not a terminal).
+fn pass_bar(
+    day: &LoadedDay,
+    plan: &Plan,
+    pass: usize,
+    done: &BTreeMap<String, Entry>,
+    what: &str,
+    opts: &RunOptions,
+) -> indicatif::ProgressBar {
+    if !opts.progress {
+        return indicatif::ProgressBar::hidden();
+    }
+    let units = plan.units.iter().filter(|u| u.pass == pass);
+    let pending = units.filter(|u| !done.contains_key(&u.id));
+    let returns: usize = pending.map(|u| u.records[1] - u.records[0]).sum();
+    let name = &day.config.passes[pass].name;
+    crate::progress::bar(returns as u64, &format!("pass {name}: {what}"))
 }
 
 /// The units done and the passes failed, as the merge and the report take them.
@@ -268,6 +302,12 @@ fn correct_passes(
     let out = &day.config.day.out;
     let journalled = journal::read(&out.join("journal.jsonl"))?;
     let mut corrected = false;
+    let mut ctx = units::UnitContext {
+        day,
+        plan,
+        opts,
+        bar: indicatif::ProgressBar::hidden(),
+    };
     for d in diagnosis {
         let Some(k) = night::Correction::of(day, plan, d)? else {
             continue;
@@ -275,6 +315,8 @@ fn correct_passes(
         corrected = true;
         let mut prepared = None;
         let name = &day.config.passes[k.pass].name;
+        let what = "re-processing with the correction";
+        ctx.bar = pass_bar(day, plan, k.pass, &BTreeMap::new(), what, opts);
         for unit in plan.units.iter().filter(|u| u.pass == k.pass) {
             let journalled = journalled.get(&k.unit_id(unit));
             let entry = match journalled.filter(|e| verified(out, e, name)) {
@@ -285,11 +327,12 @@ fn correct_passes(
                         Some(p) => p,
                         slot => slot.insert(crate::pipeline::prepare::open(&k.pipeline)?),
                     };
-                    units::run_unit(day, plan, unit, Some(&k), pass, Target::OwnFile, opts)?
+                    units::run_unit(&ctx, unit, Some(&k), pass, Target::OwnFile)?
                 }
             };
             done.insert(unit.id.clone(), entry);
         }
+        ctx.bar.finish();
     }
     Ok(corrected)
 }

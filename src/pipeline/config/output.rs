@@ -237,6 +237,12 @@ impl OutputConfig {
                            ellipsoid: frame kind \"utm\" or \"epsg\" (ECEF Z and local Up are not)";
             return Err(refuse("output.geoid", problem));
         }
+        if self.geoid.is_some() && self.frame == (FrameConfig::Epsg { code: 4979 }) {
+            let problem = "EPSG:4979 states ellipsoidal heights: orthometric heights from a geoid \
+                           contradict it; use code = 4326 (horizontal, the geoid's heights as its \
+                           vertical CRS) or leave output.geoid out";
+            return Err(refuse("output.geoid", problem));
+        }
         self.frame.check()
     }
 }
