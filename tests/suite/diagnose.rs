@@ -143,7 +143,8 @@ fn bad_input_names_what_is_missing() {
 
 /// Issue #23: no observation left is named by its cause, not blamed on the patch file ("in
 /// another datum") or on the fit ("0 reference patch(es) have returns"): every return rejected
-/// by the run's own checks (the clock 1000 s late: all outside the trajectory), and visits cut
+/// by the run's own checks (the clock 1000 s late: all outside the trajectory but the missing
+/// returns, which are not counted against the share), and visits cut
 /// by `diagnose.max_visit_s = 1e-9` below `diagnose.min_per_visit` returns.
 #[test]
 fn no_observation_left_is_named_by_its_cause() {
@@ -173,7 +174,7 @@ fn no_observation_left_is_named_by_its_cause() {
     let err = diagnose("time.t0_s=346601.0");
     for want in [
         "pipeline.toml",
-        "100.0% of the",
+        "% of the 1380000 returns of the survey are rejected",
         "return time outside the trajectory span",
         "time.t0_s",
         "run's own checks",

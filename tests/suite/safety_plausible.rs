@@ -265,15 +265,16 @@ fn a_day_pass_rejecting_more_than_max_rejected_share_fails_alone() {
     assert!(report["passes"][1]["failed"].is_string(), "{report}");
     assert_eq!(report["outputs"].as_array().unwrap().len(), 1, "{report}");
 
+    // The limit raised (a new template: a day folder's plan belongs to its template).
     let template = std::fs::read_to_string(d.join("pipeline.toml")).unwrap();
     // [output] is the template's last table.
-    std::fs::write(
-        d.join("pipeline.toml"),
-        template + "max_rejected_share = 0.5\n",
-    )
-    .unwrap();
-    let o = kinescan(d, &["day", "day.toml"]);
+    let raised = template + "max_rejected_share = 0.5\n";
+    std::fs::write(d.join("raised.toml"), raised).unwrap();
+    let day = day.replace("pipeline.toml", "raised.toml");
+    std::fs::write(d.join("raised_day.toml"), day.replace("night", "raised")).unwrap();
+    let o = kinescan(d, &["day", "raised_day.toml"]);
     assert!(o.status.success(), "{}", stderr(&o));
+    let out = d.join("raised");
     assert!(out.join("p01.las").is_file() && out.join("p02.las").is_file());
 }
 

@@ -2,7 +2,7 @@
 
 use super::refusal::{refuse, require_finite, Refusal};
 use crate::geo::ellipsoid::Geodetic;
-use crate::geo::epsg::EpsgCrs;
+use crate::geo::projection::MapFrame;
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 /// Output mapping frame: a table with a `kind` (`output.frame = { kind = "utm" }`). A bare
@@ -276,9 +276,9 @@ impl FrameConfig {
                 }
                 Ok(())
             }
-            FrameConfig::Epsg { code } => EpsgCrs::get(code)
+            FrameConfig::Epsg { code } => MapFrame::from_epsg(code)
                 .map(drop)
-                .map_err(|why| refuse("output.frame.code", why)),
+                .map_err(|why| refuse("output.frame.code", why.to_string())),
             _ => Ok(()),
         }
     }

@@ -22,8 +22,8 @@ pub(super) fn check_rejected(p: &LoadedPipeline, counts: &ObserveCounts) -> Resu
     };
     let (key, cause) = excess.reason.likely_cause();
     let problem = format!(
-        "{} by the run's own checks, so none can fall on a reference patch (not a fault of \
-         the patch file): {cause}",
+        "by the run's own checks, {}; so too few can fall on a reference patch (not a fault \
+         of the patch file): {cause}",
         excess.describe("the survey", max)
     );
     Err(Error::config(p.path.display().to_string(), key, problem))
