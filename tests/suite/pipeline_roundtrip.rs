@@ -652,12 +652,15 @@ fn geographic_output_writes_degrees_and_metres() {
         assert!(worst < 1e-3, "EPSG:{code}: worst 3D error {worst} m");
         let wkt = common::las_wkt(&las);
         let id = match code {
-            4979 => "ID[\"EPSG\",4979]".to_string(),
+            4979 => "ID[\"EPSG\",4979]]".to_string(),
             _ => format!("AUTHORITY[\"EPSG\",\"{code}\"]]"),
         };
         // The VLR's text is NUL-padded.
         let wkt = wkt.trim_end_matches(['\0', ' ']);
-        assert!(wkt.starts_with("GEOGCS[") || wkt.starts_with("GEOGCRS["), "{wkt}");
+        assert!(
+            wkt.starts_with("GEOGCS[") || wkt.starts_with("GEOGCRS["),
+            "{wkt}"
+        );
         assert!(wkt.ends_with(&id), "{wkt}");
         let header = las::Reader::from_path(&las).unwrap().header().clone();
         assert_eq!(header.transforms().x.scale, 1e-9);
