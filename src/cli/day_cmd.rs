@@ -40,13 +40,19 @@ pub fn day(a: &DayArgs, quiet: bool) -> Result<()> {
     };
     let opts = RunOptions {
         threads: a.threads,
-        progress: false,
+        // Per pass, drawn on stderr only when it is a terminal (crate::progress).
+        progress: !quiet,
         ..RunOptions::default()
     };
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.threads.unwrap_or(0))
         .build()?;
     let report = pool.install(|| day::run(&a.day, &step, &opts))?;
+    let failed: Vec<String> = report
+        .iter()
+        .flat_map(|r| &r.passes)
+        .filter_map(|p| Some(format!("pass {}: {}", p.name, p.failed.as_ref()?)))
+        .collect();
     if let (Some(r), false) = (report, quiet) {
         let t = &r.totals;
         println!(
@@ -73,6 +79,13 @@ pub fn day(a: &DayArgs, quiet: bool) -> Result<()> {
             "morning report {} ({})",
             out.join("report.md").display(),
             out.join("report.html").display()
+        );
+    }
+    if !failed.is_empty() {
+        anyhow::bail!(
+            "{} pass(es) failed, the others are published:\n  {}",
+            failed.len(),
+            failed.join("\n  ")
         );
     }
     Ok(())

@@ -264,8 +264,9 @@ fn proj4_value<'a>(proj4: &'a str, key: &str) -> Option<&'a str> {
 fn check_kind(proj4: &str) -> Result<(), String> {
     match proj4_value(proj4, "proj") {
         Some("longlat" | "latlong" | "lonlat" | "latlon") => Err(
-            "is a geographic CRS (latitude, longitude): a point cloud needs map axes in one \
-             linear unit; choose a projected CRS"
+            "is a geographic CRS (latitude, longitude) kinescan does not write: the \
+             geographic outputs are EPSG:4326, 4979 (ellipsoidal height) and 4258 (ETRS89); \
+             else choose a projected CRS"
                 .into(),
         ),
         Some("geocent") => {

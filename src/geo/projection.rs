@@ -70,7 +70,19 @@ pub enum MapFrame {
         /// The resolved CRS (one per code and process).
         crs: &'static EpsgCrs,
     },
+    /// Geographic coordinates by EPSG code ([`GEOGRAPHIC_CODES`]: WGS 84 2D and 3D, ETRS89):
+    /// X longitude and Y latitude in degrees (longitude in (-180, 180]), Z the ellipsoidal
+    /// height in metres. ETRS89 is taken as WGS84 (the null transformation PROJ applies, as
+    /// for the projected ETRS89 codes; their ellipsoids differ by 0.1 mm).
+    Geographic {
+        /// 4326, 4979 or 4258.
+        code: u32,
+    },
 }
+
+/// The geographic CRSs a map frame can be ([`MapFrame::Geographic`]): WGS 84 (2D), WGS 84
+/// (3D, ellipsoidal height) and ETRS89.
+pub const GEOGRAPHIC_CODES: [u32; 3] = [4326, 4979, 4258];
 
 /// Unvalidated mirror of [`MapFrame`] used for (de)serialisation.
 #[derive(Serialize, Deserialize)]
@@ -89,6 +101,7 @@ impl From<MapFrame> for MapFrameDef {
             MapFrame::Ecef => MapFrameDef::Ecef,
             MapFrame::LocalEnu { origin } => MapFrameDef::LocalEnu { origin },
             MapFrame::Epsg { crs } => MapFrameDef::Epsg { code: crs.code() },
+            MapFrame::Geographic { code } => MapFrameDef::Epsg { code },
         }
     }
 }
@@ -126,6 +139,11 @@ impl fmt::Display for MapFrame {
                 origin.h_m
             ),
             MapFrame::Epsg { crs } => f.write_str(crs.name()),
+            MapFrame::Geographic { code } => f.write_str(match code {
+                4979 => "WGS 84 (3D)",
+                4258 => "ETRS89",
+                _ => "WGS 84",
+            }),
         }
     }
 }
@@ -167,10 +185,13 @@ impl MapFrame {
         }
     }
 
-    /// The projected CRS EPSG `code` (projected CRSs on WGS84 or with a stated Helmert to it;
-    /// refused with the reason: unknown codes, geographic and geocentric CRSs, grid-shift datums,
-    /// projections `proj4rs` lacks).
+    /// The CRS EPSG `code`: a geographic one of [`GEOGRAPHIC_CODES`], or a projected CRS on
+    /// WGS84 or with a stated Helmert to it (refused with the reason: unknown codes, other
+    /// geographic and geocentric CRSs, grid-shift datums, projections `proj4rs` lacks).
     pub fn from_epsg(code: u32) -> Result<Self> {
+        if GEOGRAPHIC_CODES.contains(&code) {
+            return Ok(MapFrame::Geographic { code });
+        }
         EpsgCrs::get(code)
             .map(|crs| MapFrame::Epsg { crs })
             .map_err(Error::Invalid)
@@ -221,6 +242,7 @@ impl MapFrame {
                     * (x_e - geodetic_to_ecef(origin))
             }
             MapFrame::Epsg { crs } => crs.ecef_to_map(x_e),
+            MapFrame::Geographic { .. } => degrees_of(ecef_to_geodetic(x_e)),
         }
     }
 
@@ -238,6 +260,7 @@ impl MapFrame {
                 )
             }
             MapFrame::Epsg { crs } => crs.geodetic_to_map(g),
+            MapFrame::Geographic { .. } => degrees_of(g),
             _ => self.ecef_to_map(&geodetic_to_ecef(g)),
         }
     }
@@ -258,6 +281,11 @@ impl MapFrame {
                 }
             }
             MapFrame::Epsg { crs } => crs.map_to_geodetic(x_m),
+            MapFrame::Geographic { .. } => Geodetic {
+                lat_rad: x_m.y.to_radians(),
+                lon_rad: x_m.x.to_radians(),
+                h_m: x_m.z,
+            },
             _ => ecef_to_geodetic(&self.map_to_ecef(x_m)),
         }
     }
@@ -271,6 +299,7 @@ impl MapFrame {
                 geodetic_to_ecef(origin) + r_enu_to_e(origin.lat_rad, origin.lon_rad) * x_m
             }
             MapFrame::Epsg { crs } => crs.map_to_ecef(x_m),
+            MapFrame::Geographic { .. } => geodetic_to_ecef(self.map_to_geodetic(x_m)),
         }
     }
 
@@ -283,12 +312,19 @@ impl MapFrame {
             MapFrame::Ecef => Some(4978),
             MapFrame::LocalEnu { .. } => None,
             MapFrame::Epsg { crs } => Some(crs.code()),
+            MapFrame::Geographic { code } => Some(code),
         }
+    }
+
+    /// Whether X and Y are longitude and latitude in degrees ([`MapFrame::Geographic`]).
+    pub fn is_geographic(&self) -> bool {
+        matches!(self, MapFrame::Geographic { .. })
     }
 
     /// Metres per unit of the map axes: 1 but for an EPSG CRS in feet (1200/3937 for US survey
     /// feet). The pipeline computes in metres and writes Z and the sigmas in this unit too
-    /// (docs/output.md).
+    /// (docs/output.md). A geographic frame has X and Y in degrees but Z and the sigmas in
+    /// metres: 1.
     pub fn metres_per_unit(&self) -> f64 {
         match self {
             MapFrame::Epsg { crs } => crs.metres_per_unit(),
@@ -343,6 +379,41 @@ impl MapFrame {
                 metre = METRE
             ),
             MapFrame::Epsg { crs } => crs.wkt().to_string(),
+            MapFrame::Geographic { code: 4979 } => format!(
+                // WKT1 has no 3D geographic CRS PROJ identifies: WKT2 (ISO 19162:2019), which
+                // PROJ, pyproj and laspy read.
+                concat!(
+                    r#"GEOGCRS["WGS 84",DATUM["World Geodetic System 1984",ELLIPSOID["WGS 84","#,
+                    r#"6378137,298.257223563,LENGTHUNIT["metre",1]]],PRIMEM["Greenwich",0,"#,
+                    r#"{deg}],CS[ellipsoidal,3],AXIS["geodetic latitude (Lat)",north,ORDER[1],"#,
+                    r#"{deg}],AXIS["geodetic longitude (Lon)",east,ORDER[2],{deg}],"#,
+                    r#"AXIS["ellipsoidal height (h)",up,ORDER[3],LENGTHUNIT["metre",1]],"#,
+                    r#"ID["EPSG",4979]]"#
+                ),
+                deg = r#"ANGLEUNIT["degree",0.0174532925199433]"#
+            ),
+            MapFrame::Geographic { code } => {
+                let datum = match code {
+                    4258 => concat!(
+                        r#"DATUM["European_Terrestrial_Reference_System_1989",SPHEROID["GRS 1980","#,
+                        r#"6378137,298.257222101,AUTHORITY["EPSG","7019"]],AUTHORITY["EPSG","6258"]],"#,
+                        r#"PRIMEM["Greenwich",0,AUTHORITY["EPSG","8901"]]"#
+                    ),
+                    _ => DATUM,
+                };
+                // No AXIS nodes: with them (longitude first, as X holds it) PROJ no longer
+                // identifies the code; LAS readers take X as longitude (docs/output.md).
+                format!(
+                    concat!(
+                        r#"GEOGCS["{name}",{datum},"#,
+                        r#"UNIT["degree",0.0174532925199433,AUTHORITY["EPSG","9122"]],"#,
+                        r#"AUTHORITY["EPSG","{code}"]]"#
+                    ),
+                    name = self,
+                    datum = datum,
+                    code = code
+                )
+            }
         }
     }
 
@@ -358,6 +429,7 @@ impl MapFrame {
     /// - ECEF: `R_enu^e` at the point.
     /// - Local ENU: `R_e^enu(origin) * R_enu^e(point)`.
     /// - EPSG: the CRS's grid axes (`EpsgCrs::r_enu_to_grid_m`) in metres whatever the CRS unit.
+    /// - Geographic: the identity (sigmas in metres along East, North, Up).
     ///
     /// Exact derivative (checked against central finite differences to 1e-8 in
     /// `tests/frames.rs`).
@@ -393,8 +465,15 @@ impl MapFrame {
                     * r_enu_to_e(g.lat_rad, g.lon_rad)
             }
             MapFrame::Epsg { crs } => crs.r_enu_to_grid_m(x_e),
+            // Sigmas in metres along East (X, longitude), North (Y, latitude) and Up.
+            MapFrame::Geographic { .. } => Matrix3::identity(),
         }
     }
+}
+
+/// Geographic map coordinates of `g`: longitude, latitude (deg), height (m).
+fn degrees_of(g: Geodetic) -> Vector3<f64> {
+    Vector3::new(g.lon_rad.to_degrees(), g.lat_rad.to_degrees(), g.h_m)
 }
 
 #[cfg(test)]

@@ -160,6 +160,8 @@ impl ProfileFile {
         ];
         let problem = if let Some((name, v)) = fields.iter().find(|(_, v)| !v.is_finite()) {
             format!("{name} is {v} (not finite)")
+        } else if let Some(problem) = beta_in_degrees(r.beta_rad) {
+            problem
         } else if r.range_m < 0.0 {
             format!("range_m {} is negative", r.range_m)
         } else {
@@ -171,6 +173,43 @@ impl ProfileFile {
             problem,
         ))
     }
+}
+
+/// Records [`ProfileFile::check_angles`] reads at most: evenly spread, they find a mirror
+/// angle column in degrees (beyond 2 pi over nearly all of a turn) without reading a large
+/// file twice.
+pub const ANGLE_SAMPLE_RECORDS: usize = 1 << 16;
+
+impl ProfileFile {
+    /// Refuses a file whose mirror angles look like degrees: a finite `beta_rad` beyond 2 pi
+    /// among up to [`ANGLE_SAMPLE_RECORDS`] records evenly spread over the file (every record
+    /// of a smaller file), naming the file and the first such record. Non-finite values are
+    /// left to the run's counts (rejected as non-finite).
+    pub fn check_angles(&self) -> Result<()> {
+        let step = self.len().div_ceil(ANGLE_SAMPLE_RECORDS).max(1);
+        for i in (0..self.len()).step_by(step) {
+            let beta = self.get(i).beta_rad;
+            if let Some(problem) = beta.is_finite().then(|| beta_in_degrees(beta)).flatten() {
+                return Err(Error::bad_record(
+                    self.path(),
+                    format!("record {i}"),
+                    problem,
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The refusal of a mirror angle beyond 2 pi (with a margin of 1e-9 of a turn for rounding):
+/// radians are expected, degrees are the likely cause. One rule for CSV and binary profiles.
+pub fn beta_in_degrees(beta_rad: f64) -> Option<String> {
+    (beta_rad.abs() > std::f64::consts::TAU * (1.0 + 1e-9)).then(|| {
+        format!(
+            "beta_rad {beta_rad} is beyond 2 pi: mirror angles are radians (degrees given? \
+             multiply by pi/180)"
+        )
+    })
 }
 
 #[inline]

@@ -86,11 +86,8 @@ impl<R: BufRead> ProfileCsvReader<R> {
             ))
         })?;
         let beta_rad = csv_text::finite_f64(lines, "beta_rad", f[1])?;
-        if beta_rad.abs() > std::f64::consts::TAU * (1.0 + 1e-9) {
-            return Err(bad(format!(
-                "beta_rad {beta_rad} is beyond 2 pi: mirror angles are radians (degrees given? \
-                 multiply by pi/180)"
-            )));
+        if let Some(problem) = super::profiles::beta_in_degrees(beta_rad) {
+            return Err(bad(problem));
         }
         let range_m = match f[2] {
             "" => 0.0,

@@ -199,36 +199,14 @@ fn check_rejected_share(
     let max = p.config.output.max_rejected_share;
     let source = p.path.display().to_string();
     for (k, (input, clock)) in inputs.iter().zip(clocks).enumerate() {
-        let c = &input.counts;
-        let missing = c
-            .rejected
-            .get(&RejectReason::MissingReturn)
-            .copied()
-            .unwrap_or(0);
-        let rejected = c.rejected_total() - missing;
-        let share = rejected as f64 / c.read.max(1) as f64;
-        if share <= max {
-            continue;
-        }
-        let Some((&reason, &n)) = c
-            .rejected
-            .iter()
-            .filter(|(r, _)| **r != RejectReason::MissingReturn)
-            .max_by_key(|(_, n)| **n)
-        else {
+        let Some(excess) = input.counts.excess_rejected(max) else {
             continue;
         };
-        let what = format!(
-            "{:.1}% of the {} returns of inputs.profiles[{k}] ({}) are rejected (more than \
-             output.max_rejected_share = {max}), {n} of them as {}",
-            share * 100.0,
-            c.read,
-            input.file.path.display(),
-            reason.describe()
-        );
+        let what = format!("inputs.profiles[{k}] ({})", input.file.path.display());
+        let what = excess.describe(&what, max);
         let software = clock.clock.model == crate::timing::TimeModel::Software;
         let first = input.profile_range.map(|(first, _)| first);
-        let (key, cause) = match (reason, first) {
+        let (key, cause) = match (excess.reason, first) {
             (RejectReason::OutsideTrajectory, Some(first)) if software => {
                 let s = &clock.clock.clock;
                 let t = s.t0_s + s.period_s * f64::from(first);
@@ -247,29 +225,10 @@ fn check_rejected_share(
                 );
                 ("time.t0_s", cause)
             }
-            (RejectReason::OutsideTrajectory | RejectReason::TrajectoryGap, _) => (
-                "inputs.sbet",
-                "the trajectory does not cover the scanner's times: check the trajectory \
-                 file and the clock (time.t0_s, time.period_s)"
-                    .to_string(),
-            ),
-            (RejectReason::RangeOutOfLimits, _) => (
-                "sensor.max_range_m",
-                "check sensor.min_range_m and sensor.max_range_m against the scanner's ranges"
-                    .to_string(),
-            ),
-            (RejectReason::OutsideAccuracy, _) => (
-                "inputs.smrmsg",
-                "the SMRMSG file does not cover the scanner's times".to_string(),
-            ),
-            (RejectReason::NoGeoidValue, _) => (
-                "output.geoid",
-                "the geoid grid has no value under the points".to_string(),
-            ),
-            _ => (
-                "output.max_rejected_share",
-                "check the profile file; raise output.max_rejected_share to accept it".to_string(),
-            ),
+            (reason, _) => {
+                let (key, cause) = reason.likely_cause();
+                (key, cause.to_string())
+            }
         };
         return Err(crate::Error::config(
             source,

@@ -187,7 +187,9 @@ pub fn open_profiles(c: &PipelineConfig, staging: &Path) -> Result<Vec<PreparedI
                 let summary = crate::io::profiles_csv::import_csv(path, &bin)?;
                 (ProfileFile::open(&bin)?, Some(summary.lines))
             } else {
-                (ProfileFile::open(path)?, None)
+                let file = ProfileFile::open(path)?;
+                file.check_angles()?;
+                (file, None)
             };
             if c.time.model.needs_time_tags() && !file.columns().time {
                 let msg = format!(

@@ -63,6 +63,63 @@ impl RejectReason {
             RejectReason::NoGeoidValue => "no geoid undulation at the point (output.geoid)",
         }
     }
+
+    /// The key to check first when many returns are rejected for this reason, and what to
+    /// check (the run's, the day's and the diagnosis's refusals of a high rejected share).
+    pub fn likely_cause(self) -> (&'static str, &'static str) {
+        match self {
+            RejectReason::OutsideTrajectory | RejectReason::TrajectoryGap => (
+                "inputs.sbet",
+                "the trajectory does not cover the scanner's times: check the trajectory \
+                 file and the clock (time.t0_s, time.period_s)",
+            ),
+            RejectReason::RangeOutOfLimits => (
+                "sensor.max_range_m",
+                "check sensor.min_range_m and sensor.max_range_m against the scanner's ranges",
+            ),
+            RejectReason::OutsideAccuracy => (
+                "inputs.smrmsg",
+                "the SMRMSG file does not cover the scanner's times",
+            ),
+            RejectReason::NoGeoidValue => (
+                "output.geoid",
+                "the geoid grid has no value under the points",
+            ),
+            RejectReason::MissingReturn | RejectReason::NonFinite => (
+                "output.max_rejected_share",
+                "check the profile file; raise output.max_rejected_share to accept it",
+            ),
+        }
+    }
+}
+
+/// Returns rejected for a reason other than a missing return, in a share above
+/// `output.max_rejected_share` (a run, a pass of a day or a diagnosis refuses them).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ExcessRejected {
+    /// Returns read.
+    pub read: u64,
+    /// Share of them rejected for a reason other than a missing return.
+    pub share: f64,
+    /// The most frequent such reason and its count.
+    pub reason: RejectReason,
+    /// Returns rejected for `reason`.
+    pub count: u64,
+}
+
+impl ExcessRejected {
+    /// "37.0% of the 1000 returns of WHAT are rejected (more than output.max_rejected_share =
+    /// MAX), 370 of them as REASON".
+    pub fn describe(&self, what: &str, max: f64) -> String {
+        format!(
+            "{:.1}% of the {} returns of {what} are rejected (more than \
+             output.max_rejected_share = {max}), {} of them as {}",
+            self.share * 100.0,
+            self.read,
+            self.count,
+            self.reason.describe()
+        )
+    }
 }
 
 /// Counts of returns by fate.
@@ -97,6 +154,31 @@ impl ReturnCounts {
         }
         self.read += read;
         self.written += written;
+    }
+
+    /// The returns rejected for a reason other than a missing return when their share of
+    /// those read is above `max` (`output.max_rejected_share`).
+    pub fn excess_rejected(&self, max: f64) -> Option<ExcessRejected> {
+        let missing = self
+            .rejected
+            .get(&RejectReason::MissingReturn)
+            .copied()
+            .unwrap_or(0);
+        let share = (self.rejected_total() - missing) as f64 / self.read.max(1) as f64;
+        if share <= max {
+            return None;
+        }
+        let (&reason, &count) = self
+            .rejected
+            .iter()
+            .filter(|(r, _)| **r != RejectReason::MissingReturn)
+            .max_by_key(|(_, n)| **n)?;
+        Some(ExcessRejected {
+            read: self.read,
+            share,
+            reason,
+            count,
+        })
     }
 
     /// Adds `other`.

@@ -49,16 +49,25 @@ impl SinkSettings {
             .unwrap_or(0.0);
         // Z in the file is in the CRS's unit (feet for a foot CRS), as X and Y.
         origin.z /= frame.metres_per_unit();
-        let offset = c
-            .output
-            .offset_m
-            .unwrap_or([origin.x, origin.y, origin.z].map(|v| (v / 1000.0).round() * 1000.0));
+        // A geographic frame's X and Y are degrees: offset to 0.01 deg (about 1 km), the rest
+        // to 1 km.
+        let round_xy = if frame.is_geographic() { 0.01 } else { 1000.0 };
+        let round = [round_xy, round_xy, 1000.0];
+        let offset = c.output.offset_m.unwrap_or(
+            [origin.x, origin.y, origin.z]
+                .iter()
+                .zip(round)
+                .map(|(v, r)| (v / r).round() * r)
+                .collect::<Vec<f64>>()
+                .try_into()
+                .expect("three axes"),
+        );
         let time = match c.inputs.gps_week {
             Some(gps_week) => GpsTimeConvention::AdjustedStandard { gps_week },
             None => GpsTimeConvention::WeekSeconds,
         };
         let layout =
-            PointLayout::with_scale([c.output.scale_m; 3], offset, time, schema.dims().to_vec())?;
+            PointLayout::with_scale(axis_scales(c, frame), offset, time, schema.dims().to_vec())?;
         let (day, year) = creation_date(c.inputs.gps_week, first.time_s);
         let config = LasWriterConfig {
             layout,
@@ -93,6 +102,25 @@ impl SinkSettings {
     pub fn finish_parts(&self, parts: &[LasSummary]) -> Result<LasSummary> {
         finish_parts(&self.las, &self.config, parts)
     }
+}
+
+/// Metres per degree of latitude, rounded up (111,132.954 m at the equator to 111,694.2 m at
+/// the poles on WGS84): a degree of longitude is at most this long too.
+const MAX_METRES_PER_DEGREE: f64 = 111_700.0;
+
+/// The LAS scale of X, Y and Z: `output.scale_m` on every axis; for a geographic frame, X and
+/// Y (degrees) at the power of ten of a degree that is no coarser than `output.scale_m` along
+/// any meridian or parallel (1 mm: 1e-9 deg, 0.11 mm north, at most 0.11 mm east), Z in metres.
+/// 1e-9 deg leaves +-2.1 deg about the offset (the first trajectory record's, to 0.01 deg) for
+/// the i32 coordinates, more than a survey spans (`output.scale_m = 1e-4`: 1e-10 deg, +-0.21
+/// deg).
+pub fn axis_scales(c: &PipelineConfig, frame: &MapFrame) -> [f64; 3] {
+    let s = c.output.scale_m;
+    if !frame.is_geographic() {
+        return [s; 3];
+    }
+    let deg = 10f64.powf((s / MAX_METRES_PER_DEGREE).log10().floor());
+    [deg, deg, s]
 }
 
 /// Survey date `YYYY-MM-DD` (UTC day of the GPS time, leap seconds aside) from the GPS week

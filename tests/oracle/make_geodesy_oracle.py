@@ -12,7 +12,8 @@ whose central meridian is 6 deg away (3 deg beyond the zone edge).
 
 --check also parses every WKT in wkt_samples.tsv (written by kinescan's MapFrame::wkt and
 compared byte for byte by tests/geodesy.rs) and requires CRS.from_wkt(wkt).to_epsg() to be the
-listed EPSG code (or None for the local ENU frame; "h+v" for a compound CRS: the horizontal and
+listed EPSG code (the geographic 4326, 4979 and 4258 included; or None for the local ENU frame;
+"h+v" for a compound CRS: the horizontal and
 vertical codes, "none" for a vertical CRS named after an unknown grid), read by pyproj and by
 laspy's `parse_crs`, with no TOWGS84 node; every code of docs/output.md's accuracy table must
 have a sample. Exit status 1 on any mismatch.
@@ -132,6 +133,11 @@ def docs_table_codes():
     return codes
 
 
+# The geographic outputs (X longitude, Y latitude in degrees; docs/output.md): each must have
+# a sample (4326 also as the horizontal CRS of a compound one) that pyproj identifies.
+GEOGRAPHIC_CODES = {4326, 4979, 4258}
+
+
 def identify(wkt):
     """EPSG code (or codes "h+v" of a compound CRS) pyproj and laspy read from a WKT."""
     import laspy
@@ -170,7 +176,7 @@ def check_wkt():
                           f"laspy parse_crs() {via_laspy}")
         if "TOWGS84" in wkt:
             errors.append(f"WKT for {expected} has a TOWGS84 node (pyproj reads a BoundCRS)")
-    missing = docs_table_codes() - seen
+    missing = (docs_table_codes() | GEOGRAPHIC_CODES) - seen
     if missing:
         errors.append(f"codes of docs/output.md's table without a WKT sample: {sorted(missing)}")
     return errors, len(lines)

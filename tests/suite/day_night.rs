@@ -196,8 +196,11 @@ fn auto_correct_re_processes_a_pass_with_its_diagnosed_correction() {
         );
         // The diagnosis re-processed this pass (not the template's first one) for its gap after.
         let toml = std::fs::read_to_string(out.join(format!("diagnosis_{pass}/corrected.toml")));
-        let profiles = format!("{pass}.ksprof\"]");
-        assert!(toml.unwrap().contains(&profiles), "{pass}: corrected.toml");
+        let (toml, profiles) = (toml.unwrap(), format!("{pass}.ksprof\"]"));
+        assert!(toml.contains(&profiles), "{pass}: corrected.toml");
+        // The template's allow_empty (unset: false), not the units' own (issue #23: the
+        // corrected pipeline carried `allow_empty = true` that nobody set).
+        assert!(toml.contains("allow_empty = false"), "{pass}: {toml}");
         let chi2 = diag["chi2_per_dof"].as_array().unwrap();
         // Both present and finite (None < Some(x) holds, and a NaN is written as null).
         let (after, before) = (chi2[1].as_f64().unwrap(), chi2[0].as_f64().unwrap());

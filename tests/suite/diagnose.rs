@@ -141,6 +141,57 @@ fn bad_input_names_what_is_missing() {
     );
 }
 
+/// Issue #23: no observation left is named by its cause, not blamed on the patch file ("in
+/// another datum") or on the fit ("0 reference patch(es) have returns"): every return rejected
+/// by the run's own checks (the clock 1000 s late: all outside the trajectory but the missing
+/// returns, which are not counted against the share), and visits cut
+/// by `diagnose.max_visit_s = 1e-9` below `diagnose.min_per_visit` returns.
+#[test]
+fn no_observation_left_is_named_by_its_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    city_block(d, "", 3);
+    let diagnose = |set: &str| {
+        let out = std::process::Command::new(env!("CARGO_BIN_EXE_kinescan"))
+            .current_dir(d)
+            .args([
+                "diagnose",
+                "pipeline.toml",
+                "--patches",
+                "survey/patches.csv",
+            ])
+            .args(["--out", "diag", "--set", set])
+            .output()
+            .unwrap();
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert!(!out.status.success(), "--set {set} accepted: {err}");
+        assert!(
+            !err.contains("another datum") && !err.contains("reference patch(es) have returns"),
+            "--set {set}: the wrong cause in {err}"
+        );
+        err
+    };
+    let err = diagnose("time.t0_s=346601.0");
+    for want in [
+        "pipeline.toml",
+        "% of the 1380000 returns of the survey are rejected",
+        "return time outside the trajectory span",
+        "time.t0_s",
+        "run's own checks",
+    ] {
+        assert!(err.contains(want), "`{want}` not in {err}");
+    }
+    let err = diagnose("diagnose.max_visit_s=1e-9");
+    for want in [
+        "key `diagnose.max_visit_s`",
+        "diagnose.min_per_visit = 20",
+        "no visit is left",
+    ] {
+        assert!(err.contains(want), "`{want}` not in {err}");
+    }
+    assert!(!d.join("diag/diagnosis.json").exists());
+}
+
 /// The pipeline file of `d`.
 fn pipeline_text(d: &Path) -> String {
     std::fs::read_to_string(d.join("pipeline.toml")).unwrap()

@@ -554,8 +554,22 @@ fn fuzz(parser: Parser, cases: u32) -> (u32, u64, f64) {
     (cases, accepted.get(), seconds)
 }
 
+/// Fuzzes every parser, or those `KINESCAN_FUZZ_ONLY` names (a comma list of the names
+/// printed, e.g. `DayToml,Patches`: to measure one); a list naming none fails.
 fn fuzz_all(cases: u32) {
-    for parser in Parser::ALL {
+    let only = std::env::var("KINESCAN_FUZZ_ONLY").ok();
+    let chosen: Vec<Parser> = Parser::ALL
+        .into_iter()
+        .filter(|p| {
+            only.as_deref()
+                .is_none_or(|o| o.split(',').any(|n| n.trim() == format!("{p:?}")))
+        })
+        .collect();
+    assert!(
+        !chosen.is_empty(),
+        "KINESCAN_FUZZ_ONLY={only:?} names no parser"
+    );
+    for parser in chosen {
         let (n, accepted, seconds) = fuzz(parser, cases);
         eprintln!(
             "fuzz {parser:?}: {n} cases in {seconds:.1} s ({accepted} parsed to a value), \

@@ -8,7 +8,7 @@ use kinescan::geo::ellipsoid::{
     ecef_to_geodetic, geodetic_to_ecef, meridian_radius_m, prime_vertical_radius_m, Geodetic,
 };
 use kinescan::geo::geoid::GeoidGrid;
-use kinescan::geo::projection::MapFrame;
+use kinescan::geo::projection::{MapFrame, GEOGRAPHIC_CODES};
 use nalgebra::Vector3;
 use std::path::PathBuf;
 
@@ -234,6 +234,8 @@ fn wkt_matches_samples_checked_by_pyproj() {
     codes.dedup();
     assert!(codes.len() >= 25, "{codes:?}");
     frames.extend(codes.iter().map(|&c| MapFrame::from_epsg(c).unwrap()));
+    // The geographic outputs (issue #24): WGS 84 2D and 3D, ETRS89.
+    frames.extend(GEOGRAPHIC_CODES.map(|c| MapFrame::from_epsg(c).unwrap()));
     let mut text: String = frames
         .iter()
         .map(|f| {
@@ -262,6 +264,11 @@ fn wkt_matches_samples_checked_by_pyproj() {
             "geoid_test.gtx",
             MapFrame::from_epsg(25832).unwrap(),
             "25832+none",
+        ),
+        (
+            "g2018u0.gtx",
+            MapFrame::from_epsg(4326).unwrap(),
+            "4326+5703",
         ),
     ] {
         std::fs::write(dir.path().join(file), &grid_bytes).unwrap();

@@ -600,7 +600,7 @@ fn epsg_frame_points_come_back_to_a_tenth_of_a_millimetre() {
     let wkt = common::las_wkt(&f.dir.path().join("out/cloud.las"));
     assert!(wkt.contains("AUTHORITY[\"EPSG\",\"2154\"]"), "{wkt}");
     for (code, why) in [
-        (4326, "geographic"),
+        (4269, "geographic"),
         (999_999, "not a known EPSG"),
         (26718, "shift grid"),
     ] {
@@ -611,6 +611,71 @@ fn epsg_frame_points_come_back_to_a_tenth_of_a_millimetre() {
             "{err}"
         );
     }
+}
+
+/// Geographic output (issue #24): EPSG:4326, 4979 and 4258 write X = longitude, Y = latitude
+/// (deg) and Z = ellipsoidal height (m); the written points, turned to ECEF by the project's
+/// geodetic conversion (tested against pyproj in geodesy.rs), are the true points to < 1 mm at
+/// the default `output.scale_m` (1 mm: X and Y at 1e-9 deg, 0.11 mm; Z at 1 mm, 0.5 mm: the
+/// bound 1 mm holds with 0.4 mm to spare). The WKT names the code; EPSG:4979 with a geoid is
+/// refused with its key.
+#[test]
+fn geographic_output_writes_degrees_and_metres() {
+    let f = fixture(3_000);
+    let d = f.dir.path();
+    let path = d.join("pipeline.toml");
+    for (code, frame) in [
+        (4326, "{ kind = \"epsg\", code = 4326 }".to_string()),
+        (4979, "{ kind = \"epsg\", code = 4979 }".to_string()),
+        (4258, "{ kind = \"epsg\", code = 4258 }".to_string()),
+    ] {
+        let set = [
+            format!("output.frame={frame}"),
+            "output.scale_m=0.001".to_string(),
+        ];
+        let report = run(&config::load(&path, &set).unwrap(), &quiet(2)).unwrap();
+        assert_eq!(report.epsg, Some(code));
+        let las = d.join("out/cloud.las");
+        let points = read_las(&las);
+        assert_eq!(points.len(), f.truth_e.len());
+        let mut worst: f64 = 0.0;
+        for (p, x_e) in points.iter().zip(&f.truth_e) {
+            let g = kinescan::geo::ellipsoid::Geodetic {
+                lat_rad: p.y.to_radians(),
+                lon_rad: p.x.to_radians(),
+                h_m: p.z,
+            };
+            let back = kinescan::geo::ellipsoid::geodetic_to_ecef(g);
+            common::raise_max(&mut worst, (back - x_e).norm());
+        }
+        println!("EPSG:{code}: worst 3D error {worst:.2e} m");
+        assert!(worst < 1e-3, "EPSG:{code}: worst 3D error {worst} m");
+        let wkt = common::las_wkt(&las);
+        let id = match code {
+            4979 => "ID[\"EPSG\",4979]]".to_string(),
+            _ => format!("AUTHORITY[\"EPSG\",\"{code}\"]]"),
+        };
+        // The VLR's text is NUL-padded.
+        let wkt = wkt.trim_end_matches(['\0', ' ']);
+        assert!(
+            wkt.starts_with("GEOGCS[") || wkt.starts_with("GEOGCRS["),
+            "{wkt}"
+        );
+        assert!(wkt.ends_with(&id), "{wkt}");
+        let header = las::Reader::from_path(&las).unwrap().header().clone();
+        assert_eq!(header.transforms().x.scale, 1e-9);
+        assert_eq!(header.transforms().z.scale, 1e-3);
+    }
+    let geoid = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/geoid_test.gtx");
+    let set = [
+        "output.frame={ kind = \"epsg\", code = 4979 }".to_string(),
+        format!("output.geoid=\"{geoid}\""),
+    ];
+    let err = config::load(&path, &set).unwrap_err().to_string();
+    assert!(
+        err.contains("output.geoid") && err.contains("4979"),
+        "{err}"
+    );
 }
 
 /// LAS 1.4 scan angle against the geometry (ECEF output, so the test needs no projection): the

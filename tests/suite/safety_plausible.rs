@@ -186,6 +186,98 @@ fn mirror_angles_in_degrees_are_refused_at_their_line() {
     refused(&o, &["deg.csv", "beta_rad", "degrees"], &[]);
 }
 
+/// Mirror angles in degrees (0..358.8) in a binary profile file: refused naming the file and
+/// record by `validate` and `run` (they ran into a wrong cloud) and by `info`.
+#[test]
+fn mirror_angles_in_degrees_are_refused_in_binary_profiles() {
+    use kinescan::io::profiles::{ProfileColumns, ProfileWriter, RawReturn};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::one_pass_survey(d, 200);
+    let mut w = ProfileWriter::create(&d.join("deg.ksprof"), ProfileColumns::default()).unwrap();
+    for n in 100..300 {
+        for k in 0..300 {
+            let r = RawReturn {
+                profile: n,
+                beta_rad: f64::from(k) * 1.2,
+                range_m: 10.0,
+                intensity: 9,
+                ..Default::default()
+            };
+            w.push(&r).unwrap();
+        }
+    }
+    w.finish().unwrap();
+    let set = "inputs.profiles=[\"deg.ksprof\"]";
+    for cmd in ["validate", "run"] {
+        let o = kinescan(d, &[cmd, "pipeline.toml", "--set", set]);
+        // Record 6 is the first beyond 2 pi (7.2); the sample reads every record of a file of
+        // 60,000 (below ANGLE_SAMPLE_RECORDS).
+        refused(&o, &["deg.ksprof", "record 6:", "beta_rad", "degrees"], &[]);
+    }
+    assert!(!d.join("out/day.las").exists());
+    let o = kinescan(d, &["info", "deg.ksprof"]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("record 6: beta_rad") && text.contains("degrees"),
+        "{text}"
+    );
+}
+
+/// A day pass with 30% of its returns after the trajectory's end (the limit is 5%): that pass
+/// fails without publishing its file (a run would refuse it; the day published it), the other
+/// pass is published, the morning report and the console name the pass and the cause, the
+/// day exits with an error; with the template's limit raised, both are published.
+#[test]
+fn a_day_pass_rejecting_more_than_max_rejected_share_fails_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    common::one_pass_survey(d, 200);
+    // Profiles 1300..2300 at 0.01 s: 13 to 23 s of the 20 s trajectory, 3 s of 10 after it.
+    common::write_ring_profiles(&d.join("late.ksprof"), 1300..2300);
+    let day = "[day]\ntemplate = \"pipeline.toml\"\nout = \"night\"\nunit_s = 2.0\n\n\
+               [[passes]]\nname = \"p01\"\nprofiles = [\"pass.ksprof\"]\n\n\
+               [[passes]]\nname = \"p02\"\nprofiles = [\"late.ksprof\"]\n";
+    std::fs::write(d.join("day.toml"), day).unwrap();
+    let o = kinescan(d, &["day", "day.toml"]);
+    let e = refused(
+        &o,
+        &[
+            "pass p02",
+            "% of the 36000 returns of pass p02 are rejected",
+            "output.max_rejected_share = 0.05",
+            "outside the trajectory",
+            "not published",
+        ],
+        &["pass p01:"],
+    );
+    let out = d.join("night");
+    assert!(out.join("p01.las").is_file(), "{e}");
+    assert!(!out.join("p02.las").exists(), "{e}");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(
+        md.contains("pass p02 FAILED: ") && md.contains("its file is not published"),
+        "{md}"
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+    assert!(report["passes"][0].get("failed").is_none(), "{report}");
+    assert!(report["passes"][1]["failed"].is_string(), "{report}");
+    assert_eq!(report["outputs"].as_array().unwrap().len(), 1, "{report}");
+
+    // The limit raised (a new template: a day folder's plan belongs to its template).
+    let template = std::fs::read_to_string(d.join("pipeline.toml")).unwrap();
+    // [output] is the template's last table.
+    let raised = template + "max_rejected_share = 0.5\n";
+    std::fs::write(d.join("raised.toml"), raised).unwrap();
+    let day = day.replace("pipeline.toml", "raised.toml");
+    std::fs::write(d.join("raised_day.toml"), day.replace("night", "raised")).unwrap();
+    let o = kinescan(d, &["day", "raised_day.toml"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = d.join("raised");
+    assert!(out.join("p01.las").is_file() && out.join("p02.las").is_file());
+}
+
 /// `output.format = "laz"` with `output.las = out/x.laz`: the file the report lists exists
 /// (it was removed after compression, exit 0).
 #[test]

@@ -3,6 +3,7 @@
 //! does. Loaded with the project's one config loader (`io::config_file`): unknown keys are
 //! refused with their dotted key, relative paths are relative to the day file's folder.
 
+use crate::geo::projection::GEOGRAPHIC_CODES;
 use crate::io::config_file::{self, ConfigPath};
 use crate::io::paths::{self, KeyedPath};
 use crate::pipeline::config::{self as pipeline_config, LoadedPipeline};
@@ -141,6 +142,18 @@ pub fn load(path: &Path) -> Result<LoadedDay> {
         .collect();
     let profiles = format!("inputs.profiles={}", toml::Value::Array(files));
     let template = pipeline_config::load(&c.day.template, &[profiles])?;
+    let geographic = match template.config.output.frame {
+        pipeline_config::FrameConfig::Epsg { code } => GEOGRAPHIC_CODES.contains(&code),
+        _ => false,
+    };
+    if let (Layout::Tiles { size_m }, true) = (c.day.layout, geographic) {
+        let problem = format!(
+            "tiles of {size_m} m cannot be cut in the template's geographic output.frame \
+             (EPSG code in degrees): use layout = {{ kind = \"per_pass\" }} or a projected \
+             output.frame"
+        );
+        return Err(Error::config(&parsed.source, "day.layout", problem));
+    }
     Ok(LoadedDay {
         path: path.to_path_buf(),
         source: parsed.source,

@@ -26,12 +26,14 @@ use std::path::{Path, PathBuf};
 
 /// Writes the day's LAS files into `set`'s staging folders (compressed when the template's
 /// `output.format` says so) from the unit outputs `done` (the one standing for each unit of
-/// `plan`: its own, or its corrected re-run's); gives their
+/// `plan`: its own, or its corrected re-run's), leaving out the passes `failed` names; gives
+/// their
 /// summaries (staged paths), in file-name order, and the sigma statistics.
 pub fn merge(
     day: &LoadedDay,
     plan: &Plan,
     done: &BTreeMap<String, Entry>,
+    failed: &[Option<String>],
     set: &mut OutputSet,
 ) -> Result<(Vec<LasSummary>, Vec<SigmaStats>)> {
     let out = &day.config.day.out;
@@ -47,6 +49,9 @@ pub fn merge(
     let per_pass = day.config.day.layout == Layout::PerPass;
     // Plan order: the passes in day-file order, each pass's units in order.
     for (pass, p) in day.config.passes.iter().enumerate() {
+        if failed[pass].is_some() {
+            continue;
+        }
         let units: Vec<&Entry> = plan
             .units
             .iter()
@@ -105,8 +110,10 @@ pub fn merge(
         summaries.extend(sink.finish()?);
     }
     summaries.sort_by(|a, b| a.path.cmp(&b.path));
-    let passes = day.config.passes.iter().zip(&by_pass);
+    let passes = day.config.passes.iter().zip(&by_pass).zip(failed);
     let mut sigma: Vec<SigmaStats> = passes
+        .filter(|(_, failed)| failed.is_none())
+        .map(|(p, _)| p)
         .map(|(p, h)| h.stats(&format!("pass {}", p.name)))
         .collect();
     sigma.extend(tile_sigma.iter().map(|(tile, h)| h.stats(tile)));

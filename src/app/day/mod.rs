@@ -92,6 +92,10 @@ pub struct DayReport {
 pub struct PassReport {
     /// Pass name.
     pub name: String,
+    /// Why the pass failed and its file is not published (its rejected share); none when
+    /// published.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub failed: Option<String>,
     /// Its work units.
     pub units: usize,
     /// Its counts (sum of its units').
@@ -168,11 +172,24 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             ))
         })?],
     };
+    let mut ctx = units::UnitContext {
+        day: &day,
+        plan: &plan,
+        opts,
+        bar: indicatif::ProgressBar::hidden(),
+    };
+    let mut bar_pass = None;
     for unit in pending {
         if done.contains_key(&unit.id) {
             continue;
         }
         crate::interrupt::check()?;
+        if bar_pass != Some(unit.pass) {
+            ctx.bar.finish();
+            let what = "georeferencing returns";
+            ctx.bar = pass_bar(&day, &plan, unit.pass, &done, what, opts);
+            bar_pass = Some(unit.pass);
+        }
         let pass = match &mut prepared[unit.pass] {
             Some(p) => p,
             slot => slot.insert(plan::prepare_pass(&day, unit.pass)?),
@@ -183,16 +200,18 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
             (Step::All, Layout::PerPass) => Target::in_order(&plan, unit, &done),
             _ => Target::OwnFile,
         };
-        let entry = units::run_unit(&day, &plan, unit, None, pass, target, opts)?;
+        let entry = units::run_unit(&ctx, unit, None, pass, target)?;
         done.insert(unit.id.clone(), entry);
     }
+    ctx.bar.finish();
     timings.insert("units".to_string(), started.elapsed().as_secs_f64());
     if matches!(step, Step::Unit(_)) {
         return Ok(None);
     }
     check_all_done(&day, &plan, &done)?;
+    let failed = rejected_passes(&day, &plan, &done);
     let started = Instant::now();
-    let diagnosis = night::diagnosis(&day, &plan)?;
+    let diagnosis = night::diagnosis(&day, &plan, &failed)?;
     if day.config.day.night.diagnose {
         timings.insert("diagnose".to_string(), started.elapsed().as_secs_f64());
     }
@@ -202,8 +221,72 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
         timings.insert("corrected_units".to_string(), seconds);
     }
     let started = Instant::now();
-    let report = publish(&day, &plan, &done, resumed, timings, diagnosis, started)?;
+    let run = DayRun {
+        done: &done,
+        failed: &failed,
+        resumed,
+    };
+    let report = publish(&day, &plan, &run, timings, diagnosis, started)?;
     Ok(Some(report))
+}
+
+/// The progress bar of pass `pass` doing `what`: the returns of its units not `done` (hidden
+/// without `opts.progress` or when stderr is not a terminal).
+fn pass_bar(
+    day: &LoadedDay,
+    plan: &Plan,
+    pass: usize,
+    done: &BTreeMap<String, Entry>,
+    what: &str,
+    opts: &RunOptions,
+) -> indicatif::ProgressBar {
+    if !opts.progress {
+        return indicatif::ProgressBar::hidden();
+    }
+    let units = plan.units.iter().filter(|u| u.pass == pass);
+    let pending = units.filter(|u| !done.contains_key(&u.id));
+    let returns: usize = pending.map(|u| u.records[1] - u.records[0]).sum();
+    let name = &day.config.passes[pass].name;
+    crate::progress::bar(returns as u64, &format!("pass {name}: {what}"))
+}
+
+/// The units done and the passes failed, as the merge and the report take them.
+struct DayRun<'a> {
+    /// Per unit of the plan, the entry of the unit file that stands for it.
+    done: &'a BTreeMap<String, Entry>,
+    /// Per pass, why it is not published (see [`rejected_passes`]).
+    failed: &'a [Option<String>],
+    /// Units found done in the journal.
+    resumed: usize,
+}
+
+/// Per pass of the day, why it fails (none: it is published): its returns rejected for a
+/// reason other than a missing return in a share above the template's
+/// `output.max_rejected_share`, as `kinescan run` refuses a run (issue #23). A failed pass is
+/// not diagnosed, corrected or merged; the other passes are published, the morning report and
+/// the console name it and `day` exits with an error.
+fn rejected_passes(
+    day: &LoadedDay,
+    plan: &Plan,
+    done: &BTreeMap<String, Entry>,
+) -> Vec<Option<String>> {
+    let max = day.template.config.output.max_rejected_share;
+    let mut counts = vec![ReturnCounts::default(); day.config.passes.len()];
+    for u in &plan.units {
+        counts[u.pass].merge(&done[&u.id].counts);
+    }
+    counts
+        .iter()
+        .zip(&day.config.passes)
+        .map(|(c, p)| {
+            let excess = c.excess_rejected(max)?;
+            let (key, cause) = excess.reason.likely_cause();
+            let what = excess.describe(&format!("pass {}", p.name), max);
+            Some(format!(
+                "{what} (check `{key}`: {cause}); its file is not published"
+            ))
+        })
+        .collect()
 }
 
 /// Re-processes the passes whose diagnosed correction the night applies: every unit of such a
@@ -219,6 +302,12 @@ fn correct_passes(
     let out = &day.config.day.out;
     let journalled = journal::read(&out.join("journal.jsonl"))?;
     let mut corrected = false;
+    let mut ctx = units::UnitContext {
+        day,
+        plan,
+        opts,
+        bar: indicatif::ProgressBar::hidden(),
+    };
     for d in diagnosis {
         let Some(k) = night::Correction::of(day, plan, d)? else {
             continue;
@@ -226,6 +315,8 @@ fn correct_passes(
         corrected = true;
         let mut prepared = None;
         let name = &day.config.passes[k.pass].name;
+        let what = "re-processing with the correction";
+        ctx.bar = pass_bar(day, plan, k.pass, &BTreeMap::new(), what, opts);
         for unit in plan.units.iter().filter(|u| u.pass == k.pass) {
             let journalled = journalled.get(&k.unit_id(unit));
             let entry = match journalled.filter(|e| verified(out, e, name)) {
@@ -236,11 +327,12 @@ fn correct_passes(
                         Some(p) => p,
                         slot => slot.insert(crate::pipeline::prepare::open(&k.pipeline)?),
                     };
-                    units::run_unit(day, plan, unit, Some(&k), pass, Target::OwnFile, opts)?
+                    units::run_unit(&ctx, unit, Some(&k), pass, Target::OwnFile)?
                 }
             };
             done.insert(unit.id.clone(), entry);
         }
+        ctx.bar.finish();
     }
     Ok(corrected)
 }
@@ -328,8 +420,7 @@ fn check_all_done(day: &LoadedDay, plan: &Plan, done: &BTreeMap<String, Entry>) 
 fn publish(
     day: &LoadedDay,
     plan: &Plan,
-    done: &BTreeMap<String, Entry>,
-    resumed: usize,
+    run: &DayRun,
     mut timings: BTreeMap<String, f64>,
     diagnosis: Vec<night::PassDiagnosis>,
     started: Instant,
@@ -338,8 +429,9 @@ fn publish(
     let report_path = out.join("day.report.json");
     let previous = previous_outputs(&report_path, &out, las_of_day, &config::inputs(day));
     let mut set = OutputSet::new("day");
-    let result = merge::merge(day, plan, done, &mut set).and_then(|(summaries, sigma)| {
-        let mut report = day_report(day, plan, done, resumed, &summaries, &set)?;
+    let result = merge::merge(day, plan, run.done, run.failed, &mut set);
+    let result = result.and_then(|(summaries, sigma)| {
+        let mut report = day_report(day, plan, run, &summaries, &set)?;
         report.sigma = sigma;
         report.diagnosis = diagnosis;
         timings.insert("merge".to_string(), started.elapsed().as_secs_f64());
@@ -368,8 +460,7 @@ fn las_of_day(name: &str) -> bool {
 fn day_report(
     day: &LoadedDay,
     plan: &Plan,
-    done: &BTreeMap<String, Entry>,
-    resumed: usize,
+    run: &DayRun,
     summaries: &[crate::io::las::LasSummary],
     set: &OutputSet,
 ) -> Result<DayReport> {
@@ -377,8 +468,10 @@ fn day_report(
         .config
         .passes
         .iter()
-        .map(|p| PassReport {
+        .zip(run.failed)
+        .map(|(p, failed)| PassReport {
             name: p.name.clone(),
+            failed: failed.clone(),
             units: 0,
             counts: ReturnCounts::default(),
             unit_seconds: 0.0,
@@ -388,7 +481,7 @@ fn day_report(
         .collect();
     let mut totals = ReturnCounts::default();
     for u in &plan.units {
-        let e = &done[&u.id];
+        let e = &run.done[&u.id];
         let p = &mut passes[u.pass];
         p.units += 1;
         p.counts.merge(&e.counts);
@@ -437,10 +530,12 @@ fn day_report(
         })
         .collect::<Result<_>>()?;
     let merged: u64 = outputs.iter().map(|o| o.points).sum();
-    if merged != totals.written || totals.read != totals.written + totals.rejected_total() {
+    let published = passes.iter().filter(|p| p.failed.is_none());
+    let published: u64 = published.map(|p| p.counts.written).sum();
+    if merged != published || totals.read != totals.written + totals.rejected_total() {
         return Err(Error::Invalid(format!(
-            "{}: counts do not add up: {} returns read, {} written by the units, {} rejected, \
-             {merged} in the merged files",
+            "{}: counts do not add up: {} returns read, {} written by the units ({published} \
+             of passes published), {} rejected, {merged} in the merged files",
             day.path.display(),
             totals.read,
             totals.written,
@@ -454,7 +549,7 @@ fn day_report(
         survey_date: crate::pipeline::survey_date(c.inputs.gps_week, first.time_s),
         crs: format!("{frame}{code}{geoid}{unit}"),
         units: plan.units.len(),
-        units_resumed: resumed,
+        units_resumed: run.resumed,
         passes,
         totals,
         outputs,

@@ -203,8 +203,12 @@ fn pass_file<'a>(r: &'a DayReport, name: &str) -> Option<&'a super::OutputFile> 
 }
 
 fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
-    let mut w = Vec::new();
-    for p in &r.passes {
+    let mut w: Vec<String> = r
+        .passes
+        .iter()
+        .filter_map(|p| Some(format!("pass {} FAILED: {}", p.name, p.failed.as_ref()?)))
+        .collect();
+    for p in r.passes.iter().filter(|p| p.failed.is_none()) {
         // No echo (open sky) is not a fault of the data; every other reason is.
         let missing = p
             .counts
@@ -345,8 +349,6 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
         "unit s",
     ];
     let mut t = vec![head.map(String::from).to_vec()];
-    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}", v * 1e3));
-    let share = |n: u64, of: u64| format!("{:.2}", 100.0 * n as f64 / of.max(1) as f64);
     for p in &r.passes {
         let c = &p.counts;
         let sigma = pass_sigma(r, &p.name);
@@ -369,15 +371,9 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
                     let summary = crate::app::diagnose::report::SUMMARY_MD;
                     format!("[{}]({}/{summary})", d.verdict, folder.unwrap_or_default())
                 });
-        t.push(vec![
-            p.name.clone(),
-            p.units.to_string(),
-            c.read.to_string(),
-            c.written.to_string(),
-            c.rejected_total().to_string(),
-            share(c.rejected_total(), c.read),
-            share(outside_trajectory(c), c.read),
-            reasons(c),
+        let mut row = vec![p.name.clone(), p.units.to_string()];
+        row.extend(count_cells(c));
+        row.extend([
             if outages.is_empty() {
                 "none".into()
             } else {
@@ -386,37 +382,53 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
             p.trajectory.gaps_s.len().to_string(),
             mm(sigma.and_then(|s| s.sigma_z_median_m)),
             mm(sigma.and_then(|s| s.thu95_median_m)),
-            file.map_or("-".into(), |f| {
-                let name = f.path.file_name().unwrap_or_default().to_string_lossy();
-                format!("{name} ({})", size(f.bytes))
-            }),
+            file.map_or_else(
+                || missing_file(p),
+                |f| {
+                    let name = f.path.file_name().unwrap_or_default().to_string_lossy();
+                    format!("{name} ({})", size(f.bytes))
+                },
+            ),
             file.map_or("-".into(), |f| {
                 format!("{:.0} x {:.0}", f.max[0] - f.min[0], f.max[1] - f.min[1])
             }),
             diagnosis,
             format!("{:.1}", p.unit_seconds),
         ]);
+        t.push(row);
     }
-    let c = &r.totals;
-    t.push(vec![
-        "day".into(),
-        r.units.to_string(),
+    let mut day = vec!["day".to_string(), r.units.to_string()];
+    day.extend(count_cells(&r.totals));
+    day.extend(["", "", &mm(day_sigma_median(r)), "", "", "", "", ""].map(String::from));
+    t.push(day);
+    t
+}
+
+/// A length in metres as millimetres to 0.1 mm, `-` for none.
+fn mm(v: Option<f64>) -> String {
+    v.map_or("-".to_string(), |v| format!("{:.1}", v * 1e3))
+}
+
+/// The count cells of a pass's (or the day's) row: read, written, rejected, rejected %,
+/// outside the trajectory %, rejected by reason.
+fn count_cells(c: &crate::pipeline::report::ReturnCounts) -> [String; 6] {
+    let share = |n: u64| format!("{:.2}", 100.0 * n as f64 / c.read.max(1) as f64);
+    [
         c.read.to_string(),
         c.written.to_string(),
         c.rejected_total().to_string(),
-        share(c.rejected_total(), c.read),
-        share(outside_trajectory(c), c.read),
+        share(c.rejected_total()),
+        share(outside_trajectory(c)),
         reasons(c),
-        String::new(),
-        String::new(),
-        mm(day_sigma_median(r)),
-        String::new(),
-        String::new(),
-        String::new(),
-        String::new(),
-        String::new(),
-    ]);
-    t
+    ]
+}
+
+/// The file cell of a pass without a file of its own: not published (failed), or in tiles.
+fn missing_file(p: &super::PassReport) -> String {
+    match p.failed {
+        Some(_) => "not published (failed)".into(),
+        None => "-".into(),
+    }
 }
 
 /// The day's files (listed up to [`TILES_LISTED`], else summarised): points, size, extent.
@@ -511,7 +523,6 @@ fn sigma(r: &DayReport) -> Vec<Vec<String>> {
         "thu95 95% (mm)",
     ];
     let mut t = vec![head.map(String::from).to_vec()];
-    let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.1}", v * 1e3));
     let (passes, tiles): (Vec<_>, Vec<_>) =
         r.sigma.iter().partition(|s| s.scope.starts_with("pass "));
     let listed = if tiles.len() <= TILES_LISTED {

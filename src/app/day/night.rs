@@ -68,22 +68,27 @@ struct Decided {
 }
 
 /// The night's diagnosis of every pass of `day` (none unless `day.night.diagnose`); with
-/// `auto_correct`, read back from `<out>/corrections.json` or made and written there.
-pub fn diagnosis(day: &LoadedDay, plan: &Plan) -> Result<Vec<PassDiagnosis>> {
+/// `auto_correct`, read back from `<out>/corrections.json` or made and written there. A pass
+/// `failed` names (not published) is not diagnosed.
+pub fn diagnosis(
+    day: &LoadedDay,
+    plan: &Plan,
+    failed: &[Option<String>],
+) -> Result<Vec<PassDiagnosis>> {
     let night = &day.config.day.night;
     if !night.diagnose {
         return Ok(Vec::new());
     }
     let patches = patches(day)?;
     if !night.auto_correct {
-        return diagnose_passes(day, plan, &patches);
+        return diagnose_passes(day, plan, &patches, failed);
     }
     let path = day.config.day.out.join(CORRECTIONS);
     let fingerprint = fingerprint(plan, &patches)?;
     if let Some(decided) = read_decided(&path, &fingerprint)? {
         return Ok(decided.diagnosis);
     }
-    let diagnosis = diagnose_passes(day, plan, &patches)?;
+    let diagnosis = diagnose_passes(day, plan, &patches, failed)?;
     let decided = Decided {
         fingerprint,
         diagnosis,
@@ -105,10 +110,18 @@ fn patches(day: &LoadedDay) -> Result<PathBuf> {
 }
 
 /// Diagnoses every pass, marking the corrections `auto_correct` applies.
-fn diagnose_passes(day: &LoadedDay, plan: &Plan, patches: &Path) -> Result<Vec<PassDiagnosis>> {
+fn diagnose_passes(
+    day: &LoadedDay,
+    plan: &Plan,
+    patches: &Path,
+    failed: &[Option<String>],
+) -> Result<Vec<PassDiagnosis>> {
     let out = day.config.day.out.to_path_buf();
     let mut found = Vec::new();
     for (pass, p) in day.config.passes.iter().enumerate() {
+        if failed[pass].is_some() {
+            continue;
+        }
         let mut pipeline =
             resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
         // The template's own setting, not the units' (a `corrected.toml` carries it).

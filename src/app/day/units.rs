@@ -59,18 +59,30 @@ impl Target {
     }
 }
 
-/// Runs `unit` of `plan` on its prepared pass into `target` (re-processed with `correction`
-/// when given, into its own file: `prepared` is then the corrected pipeline's) and journals
-/// it.
+/// What every unit of a day runs with: the day, its plan, the run options and the progress
+/// bar that counts the returns written (hidden unless stderr is a terminal).
+pub struct UnitContext<'a> {
+    /// The day.
+    pub day: &'a LoadedDay,
+    /// Its plan.
+    pub plan: &'a Plan,
+    /// Threads and chunk size.
+    pub opts: &'a RunOptions,
+    /// Advanced by each record written.
+    pub bar: indicatif::ProgressBar,
+}
+
+/// Runs `unit` of the context's plan on its prepared pass into `target` (re-processed with
+/// `correction` when given, into its own file: `prepared` is then the corrected pipeline's)
+/// and journals it.
 pub fn run_unit(
-    day: &LoadedDay,
-    plan: &Plan,
+    ctx: &UnitContext,
     unit: &Unit,
     correction: Option<&Correction>,
     prepared: &Prepared,
     target: Target,
-    opts: &RunOptions,
 ) -> Result<Entry> {
+    let (day, plan, opts) = (ctx.day, ctx.plan, ctx.opts);
     let started = Instant::now();
     let out = &day.config.day.out;
     let id = correction.map_or_else(|| unit.id.clone(), |k| k.unit_id(unit));
@@ -120,7 +132,10 @@ pub fn run_unit(
     let offsets = SigmaOffsets::of(&schema);
     let record_len = sink.layout().record_len();
     let (mut digest, mut sigma) = (UnitDigest::default(), SigmaHistograms::default());
+    // Written records as they come; the unit's every return once it is done.
+    let (bar, bar_start) = (ctx.bar.clone(), ctx.bar.position());
     let mut on_records = |records: &[u8]| {
+        bar.inc((records.len() / record_len.max(1)) as u64);
         digest.records(records);
         if let Some(at) = offsets {
             sigma.add_records(records, record_len, at);
@@ -138,6 +153,8 @@ pub fn run_unit(
         &mut on_records,
     )
     .map_err(|e| crate::pipeline::prepare::on_user_line(e, input))?;
+    ctx.bar
+        .set_position(bar_start + (unit.records[1] - unit.records[0]) as u64);
     let las = sink
         .finish()?
         .pop()

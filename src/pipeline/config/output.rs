@@ -2,7 +2,7 @@
 
 use super::refusal::{refuse, require_finite, Refusal};
 use crate::geo::ellipsoid::Geodetic;
-use crate::geo::epsg::EpsgCrs;
+use crate::geo::projection::MapFrame;
 use crate::io::config_file::ConfigPath;
 use serde::{Deserialize, Serialize};
 /// Output mapping frame: a table with a `kind` (`output.frame = { kind = "utm" }`). A bare
@@ -237,6 +237,12 @@ impl OutputConfig {
                            ellipsoid: frame kind \"utm\" or \"epsg\" (ECEF Z and local Up are not)";
             return Err(refuse("output.geoid", problem));
         }
+        if self.geoid.is_some() && self.frame == (FrameConfig::Epsg { code: 4979 }) {
+            let problem = "EPSG:4979 states ellipsoidal heights: orthometric heights from a geoid \
+                           contradict it; use code = 4326 (horizontal, the geoid's heights as its \
+                           vertical CRS) or leave output.geoid out";
+            return Err(refuse("output.geoid", problem));
+        }
         self.frame.check()
     }
 }
@@ -270,9 +276,9 @@ impl FrameConfig {
                 }
                 Ok(())
             }
-            FrameConfig::Epsg { code } => EpsgCrs::get(code)
+            FrameConfig::Epsg { code } => MapFrame::from_epsg(code)
                 .map(drop)
-                .map_err(|why| refuse("output.frame.code", why)),
+                .map_err(|why| refuse("output.frame.code", why.to_string())),
             _ => Ok(()),
         }
     }

@@ -10,6 +10,7 @@
 //! one class of [`ObserveCounts`].
 
 mod counts;
+mod nothing_left;
 mod patch_index;
 mod targets;
 
@@ -125,6 +126,9 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         hits.extend(found.patches.into_iter().map(|h| (pass, h)));
         target_hits.extend(found.targets.into_iter().map(|h| (pass, h)));
     }
+    if hits.is_empty() {
+        nothing_left::check_rejected(p, &counts)?;
+    }
     check_found(refs, opts, &hits, &target_hits)?;
     let rule = VisitRule::patches(opts);
     let (visits, short, thinned) = group_visits(hits, &rule);
@@ -132,6 +136,8 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
     counts.thinned = thinned;
     let (target_visits, short, _) = group_visits(target_hits, &VisitRule::targets(opts));
     counts.target_returns_unused = short;
+    let any_visit = !visits.is_empty() || !target_visits.is_empty();
+    nothing_left::check_visits(p, opts, &counts, any_visit)?;
     let mut set = second_pass(p, &traj, &files, &refs.patches, &index, visits, &mut counts)?;
     let refs_ctx = (&refs.control_points[..], &targets);
     add_targets(
