@@ -58,8 +58,11 @@ pub struct TrajectoryReport {
     pub elapsed_s: f64,
     /// Span over wall-clock time.
     pub realtime_factor: f64,
-    /// Bytes held by the stored forward pass.
+    /// Bytes of the stored forward pass held in memory (0: spilled to a temporary file).
     pub stored_bytes: usize,
+    /// Bytes of the stored forward pass written to a temporary file beside the SBET (removed
+    /// at the end; the smoother's epochs add 0.9 times as much).
+    pub spilled_bytes: usize,
     /// Files written.
     pub outputs: Vec<PathBuf>,
 }
@@ -72,6 +75,12 @@ pub struct ErrorModel {
     /// The autocorrelation.
     #[serde(flatten)]
     pub autocorrelation: AutoCorrelation,
+}
+
+/// Where `kinescan trajectory` writes its run report by default: `<sbet stem>.report.json`
+/// beside the SBET (the morning report of `kinescan day` looks there for the GNSS gaps).
+pub fn report_path(sbet: &Path) -> PathBuf {
+    default_beside(sbet, ".report.json")
 }
 
 fn default_beside(sbet: &Path, suffix: &str) -> PathBuf {
@@ -181,12 +190,12 @@ pub fn run_config(
     source: &str,
     started: Instant,
 ) -> Result<TrajectoryReport> {
-    let report_path = cfg
+    let report_file = cfg
         .output
         .report
         .as_ref()
         .map(|p| p.to_path_buf())
-        .unwrap_or_else(|| default_beside(&cfg.output.sbet, ".report.json"));
+        .unwrap_or_else(|| report_path(&cfg.output.sbet));
     let model_path = cfg
         .output
         .error_model
@@ -196,7 +205,7 @@ pub fn run_config(
     let mut outputs: Vec<(String, PathBuf)> = vec![
         ("output.sbet".into(), cfg.output.sbet.to_path_buf()),
         ("output.smrmsg".into(), cfg.output.smrmsg.to_path_buf()),
-        ("output.report".into(), report_path.clone()),
+        ("output.report".into(), report_file.clone()),
         ("output.error_model".into(), model_path.clone()),
     ];
     if let Some(f) = &cfg.output.filtered_sbet {
@@ -236,13 +245,24 @@ pub fn run_config(
         .map(|p| SbetWriter::create(p))
         .transpose()?;
     let mut filt_err: Option<Error> = None;
-    let fwd = smoother::forward(&imu, &gnss, start, cfg.gnss.max_rejected_run, &mut |e| {
-        if let Some(w) = filtered.as_mut() {
-            if let Err(x) = w.push(&sbet_record(e)) {
-                filt_err.get_or_insert(x);
+    let scratch = match cfg.output.sbet.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let fwd = smoother::forward_in(
+        &imu,
+        &gnss,
+        start,
+        cfg.gnss.max_rejected_run,
+        Some(&scratch),
+        &mut |e| {
+            if let Some(w) = filtered.as_mut() {
+                if let Err(x) = w.push(&sbet_record(e)) {
+                    filt_err.get_or_insert(x);
+                }
             }
-        }
-    })?;
+        },
+    )?;
     if let Some(e) = filt_err {
         return Err(e);
     }
@@ -286,8 +306,9 @@ pub fn run_config(
         elapsed_s,
         realtime_factor: span_s / elapsed_s.max(1e-9),
         stored_bytes: fwd.bytes(),
+        spilled_bytes: fwd.spilled_bytes(),
         outputs: outputs.into_iter().map(|o| o.1).collect(),
     };
-    crate::io::atomic::write_json(&report_path, &report)?;
+    crate::io::atomic::write_json(&report_file, &report)?;
     Ok(report)
 }

@@ -10,6 +10,8 @@
 
 use crate::common;
 
+use kinescan::io::gnss::{GnssFile, GNSS_RECORD_BYTES};
+use kinescan::io::imu::{ImuFile, IMU_RECORD_BYTES};
 use kinescan::io::info::describe;
 use kinescan::io::patches::read_patches;
 use kinescan::io::points::read_control_points;
@@ -44,10 +46,12 @@ enum Parser {
     PipelineToml,
     ScenarioToml,
     DayToml,
+    Imu,
+    Gnss,
 }
 
 impl Parser {
-    const ALL: [Parser; 9] = [
+    const ALL: [Parser; 11] = [
         Parser::Sbet,
         Parser::Smrmsg,
         Parser::ProfilesBinary,
@@ -57,6 +61,8 @@ impl Parser {
         Parser::PipelineToml,
         Parser::ScenarioToml,
         Parser::DayToml,
+        Parser::Imu,
+        Parser::Gnss,
     ];
 
     fn file_name(self) -> &'static str {
@@ -70,6 +76,9 @@ impl Parser {
             Parser::PipelineToml => "fuzz_pipeline.toml",
             Parser::ScenarioToml => "fuzz_scenario.toml",
             Parser::DayToml => "fuzz_day.toml",
+            // `info` recognises raw records by name (imu*, gnss*).
+            Parser::Imu => "imu_fuzz.bin",
+            Parser::Gnss => "gnss_fuzz.bin",
         }
     }
 
@@ -103,6 +112,8 @@ impl Parser {
             Parser::DayToml => kinescan::app::day::config::load(path)
                 .map(|_| ())
                 .map_err(e)?,
+            Parser::Imu => ImuFile::open(path).map(|_| ()).map_err(e)?,
+            Parser::Gnss => GnssFile::open(path).map(|_| ()).map_err(e)?,
         }
         Ok(())
     }
@@ -211,8 +222,28 @@ fn make_samples() -> Samples {
         .map(|s| read(root.join(format!("pipelines/scenario_{s}.toml"))))
         .collect();
     let days = day_folder(&dir.join(format!("{:?}", Parser::DayToml)));
+    // Raw IMU and GNSS records: 3 s of the raw city block (600 IMU records, 30 fixes).
+    let raw_dir = dir.join("raw");
+    std::fs::create_dir(&raw_dir).unwrap();
+    let raw_sc = std::fs::read_to_string(root.join("pipelines/scenario_raw_city_block.toml"))
+        .unwrap()
+        .replace("duration_s = 120.0", "duration_s = 3.0");
+    let raw_sc = Scenario::parse(&raw_sc, "raw fuzz samples").unwrap();
+    assert_eq!(raw_sc.duration_s, 3.0);
+    sim::raw::write_raw(&raw_sc, &raw_dir).unwrap();
+    let raw_file = |name: &str| read(raw_dir.join(name));
+    let imu = vec![head_records(
+        &raw_file(sim::raw::files::IMU),
+        IMU_RECORD_BYTES,
+        12,
+    )];
+    let gnss = vec![head_records(
+        &raw_file(sim::raw::files::GNSS),
+        GNSS_RECORD_BYTES,
+        12,
+    )];
     let by_parser = vec![
-        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days,
+        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, imu, gnss,
     ];
     Samples { dir, by_parser }
 }
