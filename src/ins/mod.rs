@@ -219,8 +219,13 @@ pub fn run_config(
         &outputs,
     )?;
     let imu = ImuFile::open(&cfg.inputs.imu)?;
-    let gnss_file = GnssFile::open(&cfg.inputs.gnss)?;
-    let gnss: Vec<GnssRecord> = (0..gnss_file.len()).map(|i| gnss_file.record(i)).collect();
+    // Opening validated every record: the whole file is mapped in. Drop the pages; each pass
+    // faults in what it reads and releases it behind (resident memory flat in the length).
+    imu.release(0..imu.len());
+    let gnss: Vec<GnssRecord> = {
+        let f = GnssFile::open(&cfg.inputs.gnss)?;
+        (0..f.len()).map(|i| f.record(i)).collect()
+    };
     let grade = imu_model::grade(&cfg.imu.grade)
         .ok_or_else(|| Error::config(source, "imu.grade", "unknown grade"))?;
     let lever = Vector3::from(cfg.gnss.lever_arm_b_m);
