@@ -219,8 +219,8 @@ pub fn run_config(
         &outputs,
     )?;
     let imu = ImuFile::open(&cfg.inputs.imu)?;
-    // Opening validated every record: the whole file is mapped in. Drop the pages; each pass
-    // faults in what it reads and releases it behind (resident memory flat in the length).
+    // Each pass faults in what it reads and releases it behind (resident memory flat in the
+    // length; the validation at open releases as it goes).
     imu.release(0..imu.len());
     let gnss: Vec<GnssRecord> = {
         let f = GnssFile::open(&cfg.inputs.gnss)?;
