@@ -75,24 +75,53 @@ pub fn run_demo(out: &Path, sim_opts: &SimOptions, run_opts: &RunOptions) -> Res
     write_atomic(&pipeline, PIPELINE.as_bytes())?;
     let loaded = config::load(&pipeline, &[])?;
     let report = pipeline::run(&loaded, run_opts)?;
+    let e = cloud_error(&loaded, &report, &out.join("survey"))?;
+    Ok(DemoSummary {
+        simulate_s,
+        report,
+        report_path: loaded.config.output.report_path(),
+        compared: e.compared,
+        error_3d_m: e.error_3d_m,
+        error_h_v_rms_m: e.error_h_v_rms_m,
+        normalised_rms_xyz: e.normalised_rms_xyz,
+    })
+}
+
+/// The error of a simulated survey's cloud against the simulator's true points.
+#[derive(Debug, Clone)]
+pub struct CloudError {
+    /// Points compared.
+    pub compared: u64,
+    /// 3D error: RMS, 95th percentile, maximum (m).
+    pub error_3d_m: [f64; 3],
+    /// Horizontal and vertical RMS (m).
+    pub error_h_v_rms_m: [f64; 2],
+    /// RMS of error / sigma per axis (when the cloud has sigmas).
+    pub normalised_rms_xyz: Option<[f64; 3]>,
+}
+
+/// Compares the first LAS of a run (`report`) of the pipeline `loaded` (which writes
+/// `return_index`) with the true points of the simulation in `survey`.
+pub fn cloud_error(
+    loaded: &config::LoadedPipeline,
+    report: &RunReport,
+    survey: &Path,
+) -> Result<CloudError> {
     let traj = Trajectory::open(
         &loaded.config.inputs.sbet,
         None,
         TrajectoryOptions::default(),
     )?;
     let frame = map_frame(&loaded.config.output.frame, &traj)?;
-    let truth = sim::read_truth_points(&out.join("survey").join(files::TRUTH_POINTS))?;
+    let truth = sim::read_truth_points(&survey.join(files::TRUTH_POINTS))?;
     let las = &report
         .outputs
         .first()
-        .ok_or_else(|| Error::Invalid("demo wrote no LAS".into()))?
+        .ok_or_else(|| Error::Invalid("the run wrote no LAS".into()))?
         .path;
     let offsets = ExtraOffsets::of(&OutputSchema::new(&loaded.config));
     let (errors, normalised) = compare(las, &truth, &frame, &offsets)?;
-    Ok(DemoSummary {
-        simulate_s,
-        report,
-        report_path: loaded.config.output.report_path(),
+    Ok(CloudError {
         compared: errors.len() as u64,
         error_3d_m: stats_3d(&errors),
         error_h_v_rms_m: rms_h_v(&errors),

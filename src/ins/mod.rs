@@ -58,8 +58,11 @@ pub struct TrajectoryReport {
     pub elapsed_s: f64,
     /// Span over wall-clock time.
     pub realtime_factor: f64,
-    /// Bytes held by the stored forward pass.
+    /// Bytes of the stored forward pass held in memory (0: spilled to a temporary file).
     pub stored_bytes: usize,
+    /// Bytes of the stored forward pass written to a temporary file beside the SBET (removed
+    /// at the end; the smoother's epochs add 0.9 times as much).
+    pub spilled_bytes: usize,
     /// Files written.
     pub outputs: Vec<PathBuf>,
 }
@@ -72,6 +75,12 @@ pub struct ErrorModel {
     /// The autocorrelation.
     #[serde(flatten)]
     pub autocorrelation: AutoCorrelation,
+}
+
+/// Where `kinescan trajectory` writes its run report by default: `<sbet stem>.report.json`
+/// beside the SBET (the morning report of `kinescan day` looks there for the GNSS gaps).
+pub fn report_path(sbet: &Path) -> PathBuf {
+    default_beside(sbet, ".report.json")
 }
 
 fn default_beside(sbet: &Path, suffix: &str) -> PathBuf {
@@ -181,12 +190,12 @@ pub fn run_config(
     source: &str,
     started: Instant,
 ) -> Result<TrajectoryReport> {
-    let report_path = cfg
+    let report_file = cfg
         .output
         .report
         .as_ref()
         .map(|p| p.to_path_buf())
-        .unwrap_or_else(|| default_beside(&cfg.output.sbet, ".report.json"));
+        .unwrap_or_else(|| report_path(&cfg.output.sbet));
     let model_path = cfg
         .output
         .error_model
@@ -196,7 +205,7 @@ pub fn run_config(
     let mut outputs: Vec<(String, PathBuf)> = vec![
         ("output.sbet".into(), cfg.output.sbet.to_path_buf()),
         ("output.smrmsg".into(), cfg.output.smrmsg.to_path_buf()),
-        ("output.report".into(), report_path.clone()),
+        ("output.report".into(), report_file.clone()),
         ("output.error_model".into(), model_path.clone()),
     ];
     if let Some(f) = &cfg.output.filtered_sbet {
@@ -210,8 +219,13 @@ pub fn run_config(
         &outputs,
     )?;
     let imu = ImuFile::open(&cfg.inputs.imu)?;
-    let gnss_file = GnssFile::open(&cfg.inputs.gnss)?;
-    let gnss: Vec<GnssRecord> = (0..gnss_file.len()).map(|i| gnss_file.record(i)).collect();
+    // Each pass faults in what it reads and releases it behind (resident memory flat in the
+    // length; the validation at open releases as it goes).
+    imu.release(0..imu.len());
+    let gnss: Vec<GnssRecord> = {
+        let f = GnssFile::open(&cfg.inputs.gnss)?;
+        (0..f.len()).map(|i| f.record(i)).collect()
+    };
     let grade = imu_model::grade(&cfg.imu.grade)
         .ok_or_else(|| Error::config(source, "imu.grade", "unknown grade"))?;
     let lever = Vector3::from(cfg.gnss.lever_arm_b_m);
@@ -236,13 +250,24 @@ pub fn run_config(
         .map(|p| SbetWriter::create(p))
         .transpose()?;
     let mut filt_err: Option<Error> = None;
-    let fwd = smoother::forward(&imu, &gnss, start, cfg.gnss.max_rejected_run, &mut |e| {
-        if let Some(w) = filtered.as_mut() {
-            if let Err(x) = w.push(&sbet_record(e)) {
-                filt_err.get_or_insert(x);
+    let scratch = match cfg.output.sbet.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let fwd = smoother::forward_in(
+        &imu,
+        &gnss,
+        start,
+        cfg.gnss.max_rejected_run,
+        Some(&scratch),
+        &mut |e| {
+            if let Some(w) = filtered.as_mut() {
+                if let Err(x) = w.push(&sbet_record(e)) {
+                    filt_err.get_or_insert(x);
+                }
             }
-        }
-    })?;
+        },
+    )?;
     if let Some(e) = filt_err {
         return Err(e);
     }
@@ -286,8 +311,9 @@ pub fn run_config(
         elapsed_s,
         realtime_factor: span_s / elapsed_s.max(1e-9),
         stored_bytes: fwd.bytes(),
+        spilled_bytes: fwd.spilled_bytes(),
         outputs: outputs.into_iter().map(|o| o.1).collect(),
     };
-    crate::io::atomic::write_json(&report_path, &report)?;
+    crate::io::atomic::write_json(&report_file, &report)?;
     Ok(report)
 }

@@ -1,23 +1,32 @@
 //! The forward filter pass and the Rauch-Tung-Striebel smoother over its stored epochs.
 //!
-//! Memory stays proportional to the number of GNSS updates, not IMU records: the forward pass
-//! stores, at each update epoch, the navigation state, sensor estimates and covariance after
-//! the update and the correction it applied. Between two epochs the filter only propagated,
-//! so the smoother recomputes that stretch (same code, same numbers) when it needs the
-//! per-record states, covariances and transitions. Backward, from epoch i+1 to i with
+//! The forward pass stores, at each update epoch only, the navigation state, sensor estimates
+//! and covariance after the update and the correction it applied (2.2 KB), in memory or, for
+//! `kinescan trajectory`, in a temporary file ([`crate::io::spill`]): resident memory does not
+//! grow with the length of the survey. Between two epochs the filter only propagated, so the
+//! smoother recomputes that stretch (same code, same numbers) when it needs the per-record
+//! states, covariances and transitions. Backward, from epoch i+1 to i with
 //! `M = Phi(j_{i+1}, j_i)` and the prediction `P_p` at `j_{i+1}`:
 //! `A = P_f M^T P_p^-1`, `s_i = A (s_{i+1} + u_{i+1})`, `P_s = P_f + A (P_s' - P_p) A^T`,
 //! `s` the smoothed correction of the filtered state and `u` the update's correction; the same
-//! formula with `M = Phi(j_{i+1}, j)` gives every IMU record inside the stretch.
+//! formula with `M = Phi(j_{i+1}, j)` gives every IMU record inside the stretch. The smoothed
+//! corrections and covariances of the epochs (2 KB each) go to a second store.
+//!
+//! Every transition is `I + [G; 0]` with `G` its 9 x 21 position, velocity and attitude rows
+//! ([`super::filter::TransitionRows`]): the products are taken with `G` alone.
 
 use super::filter::{
-    apply_correction, Filter, Mat, SensorEstimate, UpdateOutcome, Vec21, ATT, POS, VEL,
+    apply_correction, chain_transition, dense_chain, Filter, Mat, Rows9, SensorEstimate,
+    TransitionRows, UpdateOutcome, Vec21, ATT, N, POS, VEL,
 };
 use super::mechanisation::NavState;
 use crate::io::gnss::GnssRecord;
 use crate::io::imu::{ImuFile, ImuRecord};
+use crate::io::spill::Spill;
 use crate::{Error, Result};
-use nalgebra::{Matrix3, SMatrix, Vector3};
+use nalgebra::{Matrix3, Quaternion, SMatrix, UnitQuaternion, Vector3, Vector4};
+use std::ops::Range;
+use std::path::{Path, PathBuf};
 
 /// Covariance of position (m, NED), velocity (m/s, NED) and attitude (rad, NED `phi`).
 pub type Cov9 = SMatrix<f64, 9, 9>;
@@ -28,6 +37,12 @@ pub trait ImuSource {
     fn count(&self) -> usize;
     /// Record `i`.
     fn get(&self, i: usize) -> ImuRecord;
+    /// Time of record `i` (s).
+    fn time_s(&self, i: usize) -> f64 {
+        self.get(i).time_s
+    }
+    /// The records `range` will not be read again soon (a mapped file drops their pages).
+    fn release(&self, _range: Range<usize>) {}
 }
 
 impl ImuSource for [ImuRecord] {
@@ -46,7 +61,16 @@ impl ImuSource for ImuFile {
     fn get(&self, i: usize) -> ImuRecord {
         self.record(i)
     }
+    fn time_s(&self, i: usize) -> f64 {
+        ImuFile::time_s(self, i)
+    }
+    fn release(&self, range: Range<usize>) {
+        ImuFile::release(self, range)
+    }
 }
+
+/// Records between two releases of a mapped IMU file's pages.
+const RELEASE_EVERY: usize = 1 << 16;
 
 /// One output sample (filtered or smoothed).
 #[derive(Debug, Clone, Copy)]
@@ -88,12 +112,21 @@ pub struct FilterStats {
 }
 
 /// Packed upper triangle of a covariance.
-const PACKED: usize = super::filter::N * (super::filter::N + 1) / 2;
+const PACKED: usize = N * (N + 1) / 2;
+/// A navigation state as f64: time, latitude, longitude, height, velocity (3), quaternion (4).
+const NAV: usize = 11;
+/// A stored forward epoch: record index, navigation state, sensor estimates (12), update
+/// correction (21), packed covariance.
+const EPOCH_WIDTH: usize = 1 + NAV + 12 + N + PACKED;
+/// A stored smoothed epoch: smoothed correction (21), packed covariance.
+const SMOOTH_WIDTH: usize = N + PACKED;
 
-fn pack(p: &Mat, out: &mut Vec<f64>) {
-    for i in 0..super::filter::N {
-        for j in i..super::filter::N {
-            out.push(p[(i, j)]);
+fn pack(p: &Mat, out: &mut [f64]) {
+    let mut k = 0;
+    for i in 0..N {
+        for j in i..N {
+            out[k] = p[(i, j)];
+            k += 1;
         }
     }
 }
@@ -101,8 +134,8 @@ fn pack(p: &Mat, out: &mut Vec<f64>) {
 fn unpack(v: &[f64]) -> Mat {
     let mut p = Mat::zeros();
     let mut k = 0;
-    for i in 0..super::filter::N {
-        for j in i..super::filter::N {
+    for i in 0..N {
+        for j in i..N {
             p[(i, j)] = v[k];
             p[(j, i)] = v[k];
             k += 1;
@@ -118,13 +151,70 @@ struct Epoch {
     nav: NavState,
     sens: SensorEstimate,
     u: Vec21,
+    p: Mat,
+}
+
+impl Epoch {
+    fn encode(&self, out: &mut [f64]) {
+        let n = &self.nav;
+        out[0] = self.j as f64;
+        out[1..1 + NAV].copy_from_slice(&[
+            n.time_s,
+            n.lat_rad,
+            n.lon_rad,
+            n.h_m,
+            n.v_n.x,
+            n.v_n.y,
+            n.v_n.z,
+            n.q_b_n.coords[0],
+            n.q_b_n.coords[1],
+            n.q_b_n.coords[2],
+            n.q_b_n.coords[3],
+        ]);
+        let s = &self.sens;
+        let mut k = 1 + NAV;
+        for v in [&s.b_g, &s.b_a, &s.s_g, &s.s_a] {
+            out[k..k + 3].copy_from_slice(v.as_slice());
+            k += 3;
+        }
+        out[k..k + N].copy_from_slice(self.u.as_slice());
+        pack(&self.p, &mut out[k + N..]);
+    }
+
+    fn decode(v: &[f64]) -> Epoch {
+        let n = &v[1..1 + NAV];
+        let nav = NavState {
+            time_s: n[0],
+            lat_rad: n[1],
+            lon_rad: n[2],
+            h_m: n[3],
+            v_n: Vector3::new(n[4], n[5], n[6]),
+            q_b_n: UnitQuaternion::new_unchecked(Quaternion::from(Vector4::new(
+                n[7], n[8], n[9], n[10],
+            ))),
+        };
+        let k = 1 + NAV;
+        let v3 = |a: usize| Vector3::new(v[a], v[a + 1], v[a + 2]);
+        Epoch {
+            j: v[0] as usize,
+            nav,
+            sens: SensorEstimate {
+                b_g: v3(k),
+                b_a: v3(k + 3),
+                s_g: v3(k + 6),
+                s_a: v3(k + 9),
+            },
+            u: Vec21::from_column_slice(&v[k + 12..k + 12 + N]),
+            p: unpack(&v[k + 12 + N..]),
+        }
+    }
 }
 
 /// The stored forward pass.
 pub struct Forward {
     template: Filter,
-    epochs: Vec<Epoch>,
-    p_f: Vec<f64>,
+    epochs: Spill,
+    scratch: Option<PathBuf>,
     end: usize,
     /// Counts.
     pub stats: FilterStats,
@@ -135,9 +225,23 @@ impl Forward {
     pub fn epochs(&self) -> usize {
         self.epochs.len()
     }
-    /// Bytes held by the stored epochs.
+    /// Bytes held in memory by the stored epochs.
     pub fn bytes(&self) -> usize {
-        self.epochs.capacity() * std::mem::size_of::<Epoch>() + self.p_f.capacity() * 8
+        self.epochs.memory_bytes()
+    }
+    /// Bytes of the stored epochs written to the temporary file.
+    pub fn spilled_bytes(&self) -> usize {
+        self.epochs.file_bytes()
+    }
+    fn epoch(&self, i: usize, buf: &mut [f64]) -> Result<Epoch> {
+        self.epochs.get(i, buf)?;
+        Ok(Epoch::decode(buf))
+    }
+    fn store(&self, label: &str, width: usize) -> Result<Spill> {
+        match &self.scratch {
+            Some(d) => Spill::file_in(d, label, width),
+            None => Ok(Spill::memory(width)),
+        }
     }
 }
 
@@ -150,7 +254,7 @@ fn cov9(p: &Mat) -> Cov9 {
 /// Runs the filter from `start` over the IMU records, updating with the fixes (sorted by
 /// time); calls `sink` with every filtered state (record `start.index` on). Stops with an
 /// error after `max_rejected_run` consecutive rejected fixes (a diverged filter: wrong initial
-/// heading, wrong lever arm, or a GNSS file of another survey).
+/// heading, wrong lever arm, or a GNSS file of another survey). The epochs are held in memory.
 pub fn forward(
     imu: &(impl ImuSource + ?Sized),
     gnss: &[GnssRecord],
@@ -158,19 +262,35 @@ pub fn forward(
     max_rejected_run: usize,
     sink: &mut dyn FnMut(&Estimate),
 ) -> Result<Forward> {
+    forward_in(imu, gnss, start, max_rejected_run, None, sink)
+}
+
+/// [`forward`] with the stored epochs (and the smoother's) in temporary files inside
+/// `scratch` when given: memory flat in the survey's length.
+pub fn forward_in(
+    imu: &(impl ImuSource + ?Sized),
+    gnss: &[GnssRecord],
+    start: Start,
+    max_rejected_run: usize,
+    scratch: Option<&Path>,
+    sink: &mut dyn FnMut(&Estimate),
+) -> Result<Forward> {
     let n = imu.count();
     let mut f = start.filter;
     let mut stats = FilterStats::default();
-    let mut epochs = Vec::new();
-    let mut p_f = Vec::new();
+    let mut epochs = match scratch {
+        Some(d) => Spill::file_in(d, "trajectory-forward", EPOCH_WIDTH)?,
+        None => Spill::memory(EPOCH_WIDTH),
+    };
+    let mut buf = vec![0.0; EPOCH_WIDTH];
     let half = |j: usize| {
         let a = if j > 0 {
-            imu.get(j).time_s - imu.get(j - 1).time_s
+            imu.time_s(j) - imu.time_s(j - 1)
         } else {
             0.0
         };
         let b = if j + 1 < n {
-            imu.get(j + 1).time_s - imu.get(j).time_s
+            imu.time_s(j + 1) - imu.time_s(j)
         } else {
             0.0
         };
@@ -220,13 +340,15 @@ pub fn forward(
             g += 1;
         }
         if j == start.index || updated {
-            epochs.push(Epoch {
+            let e = Epoch {
                 j,
                 nav: f.nav,
                 sens: f.sens,
                 u,
-            });
-            pack(&f.p, &mut p_f);
+                p: f.p,
+            };
+            e.encode(&mut buf);
+            epochs.push(&buf)?;
         }
         let (w, fb) = f.sens.correct(&rec);
         sink(&Estimate {
@@ -235,6 +357,9 @@ pub fn forward(
             w_b: w,
             cov: cov9(&f.p),
         });
+        if j % RELEASE_EVERY == 0 && j > RELEASE_EVERY {
+            imu.release(0..j - RELEASE_EVERY);
+        }
         crate::interrupt::check()?;
     }
     stats.imu_records = n - start.index;
@@ -243,46 +368,79 @@ pub fn forward(
     Ok(Forward {
         template,
         epochs,
-        p_f,
+        scratch: scratch.map(Path::to_path_buf),
         end: n,
         stats,
     })
 }
 
-/// The recomputed stretch from an epoch to (excluding) record `j_end`.
+/// The filter at a stored epoch.
+fn filter_at(fwd: &Forward, e: &Epoch) -> Filter {
+    let mut f = fwd.template.clone();
+    f.nav = e.nav;
+    f.sens = e.sens;
+    f.p = e.p;
+    f
+}
+
+/// Top rows of the identity.
+fn identity_rows() -> Rows9 {
+    let mut m = Rows9::zeros();
+    m.fixed_view_mut::<9, 9>(0, 0).fill_with_identity();
+    m
+}
+
+/// The prediction at record `j_end` from epoch `e` and the stretch's transition rows
+/// (`M = Phi(j_end, e.j)`).
+fn predict(
+    imu: &(impl ImuSource + ?Sized),
+    fwd: &Forward,
+    e: &Epoch,
+    j_end: usize,
+) -> (Mat, Rows9) {
+    let mut f = filter_at(fwd, e);
+    let mut m_top = identity_rows();
+    for j in e.j + 1..=j_end {
+        let g = f.propagate(&imu.get(j));
+        chain_transition(&mut m_top, &g);
+    }
+    (f.p, m_top)
+}
+
+/// The recomputed stretch from an epoch to (excluding) record `j_end`: per record the state,
+/// corrected rates, the top rows of the covariance and (when it ends at an epoch) the
+/// transition rows to the next record.
 struct Stretch {
     navs: Vec<NavState>,
     fw: Vec<(Vector3<f64>, Vector3<f64>)>,
-    ps: Vec<Mat>,
-    phis: Vec<Mat>,
+    p9: Vec<Rows9>,
+    gs: Vec<TransitionRows>,
     p_pred: Mat,
 }
 
 fn recompute(
     imu: &(impl ImuSource + ?Sized),
     fwd: &Forward,
-    i: usize,
+    e: &Epoch,
     j_end: usize,
     out: &mut Stretch,
 ) {
-    let e = &fwd.epochs[i];
-    let mut f = fwd.template.clone();
-    f.nav = e.nav;
-    f.sens = e.sens;
-    f.p = unpack(&fwd.p_f[i * PACKED..(i + 1) * PACKED]);
+    let mut f = filter_at(fwd, e);
     out.navs.clear();
     out.fw.clear();
-    out.ps.clear();
-    out.phis.clear();
+    out.p9.clear();
+    out.gs.clear();
+    let to_epoch = j_end < fwd.end;
     let mut rec = imu.get(e.j);
     for j in e.j..j_end {
         out.navs.push(f.nav);
         out.fw.push(f.sens.correct(&rec));
-        out.ps.push(f.p);
-        if j + 1 < fwd.end {
+        out.p9.push(f.p.fixed_rows::<9>(0).into_owned());
+        if j + 1 < j_end || to_epoch {
             rec = imu.get(j + 1);
-            if j + 1 < j_end || j_end < fwd.end {
-                out.phis.push(f.propagate(&rec));
+            let g = f.propagate(&rec);
+            if to_epoch {
+                out.gs.push(g);
             }
         }
     }
@@ -483,65 +641,78 @@ pub fn smooth(
     fwd: &Forward,
     sink: &mut dyn FnMut(&Estimate) -> Result<()>,
 ) -> Result<AutoCorrelation> {
-    let ne = fwd.epochs.len();
+    let ne = fwd.epochs();
     let last = ne - 1;
-    // Backward pass: smoothed correction and covariance at every epoch.
-    let mut s_ep = vec![Vec21::zeros(); ne];
-    let mut ps_ep: Vec<f64> = vec![0.0; ne * PACKED];
-    ps_ep[last * PACKED..].copy_from_slice(&fwd.p_f[last * PACKED..]);
-    let mut st = Stretch {
-        navs: Vec::new(),
-        fw: Vec::new(),
-        ps: Vec::new(),
-        phis: Vec::new(),
-        p_pred: Mat::zeros(),
-    };
+    let mut ebuf = vec![0.0; EPOCH_WIDTH];
+    let mut sbuf = vec![0.0; SMOOTH_WIDTH];
+    // Backward pass: smoothed correction and covariance at every epoch, stored in reverse
+    // order (record `last - i` is epoch i).
+    let mut smoothed = fwd.store("trajectory-smoothed", SMOOTH_WIDTH)?;
+    let mut next = fwd.epoch(last, &mut ebuf)?;
+    let (mut s_next, mut ps_next) = (Vec21::zeros(), next.p);
+    sbuf[..N].fill(0.0);
+    pack(&ps_next, &mut sbuf[N..]);
+    smoothed.push(&sbuf)?;
     let mut acf = AcfAccumulator::new(ne);
+    let mut released = fwd.end;
     for i in (0..last).rev() {
-        let j_end = fwd.epochs[i + 1].j;
-        recompute(imu, fwd, i, j_end, &mut st);
-        let pp_inv = inverse_spd(&st.p_pred)?;
-        let mut b = pp_inv;
-        for phi in st.phis.iter().rev() {
-            b = phi.transpose() * b;
-        }
-        let p_f = &st.ps[0];
-        let a = p_f * b;
-        let c = s_ep[i + 1] + fwd.epochs[i + 1].u;
-        s_ep[i] = a * c;
-        let ps_next = unpack(&ps_ep[(i + 1) * PACKED..(i + 2) * PACKED]);
-        let mut ps = p_f + a * (ps_next - st.p_pred) * a.transpose();
+        let e = fwd.epoch(i, &mut ebuf)?;
+        let (p_pred, m_top) = predict(imu, fwd, &e, next.j);
+        let pp_inv = inverse_spd(&p_pred)?;
+        let a = e.p * dense_chain(&m_top).transpose() * pp_inv;
+        let s = a * (s_next + next.u);
+        let mut ps = e.p + a * (ps_next - p_pred) * a.transpose();
         super::filter::symmetrise(&mut ps);
-        acf.step(i, fwd.epochs[i].nav.time_s, &fwd.epochs[i].nav, &a, &ps);
-        let mut packed = Vec::with_capacity(PACKED);
-        pack(&ps, &mut packed);
-        ps_ep[i * PACKED..(i + 1) * PACKED].copy_from_slice(&packed);
+        acf.step(i, e.nav.time_s, &e.nav, &a, &ps);
+        sbuf[..N].copy_from_slice(s.as_slice());
+        pack(&ps, &mut sbuf[N..]);
+        smoothed.push(&sbuf)?;
+        (s_next, ps_next, next) = (s, ps, e);
+        if released > next.j + 2 * RELEASE_EVERY {
+            imu.release(next.j + RELEASE_EVERY..released);
+            released = next.j + RELEASE_EVERY;
+        }
         crate::interrupt::check()?;
     }
     // Output pass, forward.
+    let mut st = Stretch {
+        navs: Vec::new(),
+        fw: Vec::new(),
+        p9: Vec::new(),
+        gs: Vec::new(),
+        p_pred: Mat::zeros(),
+    };
     let mut buf: Vec<Estimate> = Vec::new();
+    let mut e = fwd.epoch(0, &mut ebuf)?;
     for i in 0..=last {
-        let j_end = if i < last {
-            fwd.epochs[i + 1].j
+        let next = if i < last {
+            Some(fwd.epoch(i + 1, &mut ebuf)?)
         } else {
-            fwd.end
+            None
         };
-        recompute(imu, fwd, i, j_end, &mut st);
+        let j_end = next.as_ref().map_or(fwd.end, |x| x.j);
+        recompute(imu, fwd, &e, j_end, &mut st);
         buf.clear();
         let len = st.navs.len();
-        if i < last {
+        if let Some(nx) = &next {
+            smoothed.get(last - (i + 1), &mut sbuf)?;
+            let c = Vec21::from_column_slice(&sbuf[..N]) + nx.u;
             let pp_inv = inverse_spd(&st.p_pred)?;
-            let c = s_ep[i + 1] + fwd.epochs[i + 1].u;
-            let ps_next = unpack(&ps_ep[(i + 1) * PACKED..(i + 2) * PACKED]);
-            let dp = ps_next - st.p_pred;
-            let mut b = pp_inv;
+            // s_m = C_m lambda, P_s(m) = P_m + C_m W C_m^T with C_m = P9_m Phi(end, m)^T.
+            let lambda = pp_inv * c;
+            let w = pp_inv * (unpack(&sbuf[N..]) - st.p_pred) * pp_inv;
+            let mut t = identity_rows();
             for m in (0..len).rev() {
-                b = st.phis[m].transpose() * b;
-                let a9 = st.ps[m].fixed_rows::<9>(0) * b;
-                let s9 = a9 * c;
+                let tg = t.fixed_columns::<9>(0) * st.gs[m];
+                t += tg;
+                let p9 = &st.p9[m];
+                let mut cm = *p9;
+                cm.fixed_columns_mut::<9>(0)
+                    .copy_from(&(p9 * t.transpose()));
+                let s9 = cm * lambda;
                 let mut s = Vec21::zeros();
                 s.fixed_rows_mut::<9>(0).copy_from(&s9);
-                let mut cov = cov9(&st.ps[m]) + a9 * dp * a9.transpose();
+                let mut cov = p9.fixed_columns::<9>(0) + (cm * w) * cm.transpose();
                 cov = 0.5 * (cov + cov.transpose());
                 let mut nav = st.navs[m];
                 let mut sens = SensorEstimate::default();
@@ -560,12 +731,18 @@ pub fn smooth(
                     nav: st.navs[m],
                     f_b: st.fw[m].1,
                     w_b: st.fw[m].0,
-                    cov: cov9(&st.ps[m]),
+                    cov: st.p9[m].fixed_columns::<9>(0).into_owned(),
                 });
             }
         }
-        for e in &buf {
-            sink(e)?;
+        for x in &buf {
+            sink(x)?;
+        }
+        if e.j > 2 * RELEASE_EVERY && i % 64 == 0 {
+            imu.release(0..e.j - RELEASE_EVERY);
+        }
+        if let Some(nx) = next {
+            e = nx;
         }
         crate::interrupt::check()?;
     }

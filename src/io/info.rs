@@ -6,8 +6,12 @@
 //! a kinescan CSV header means CSV profiles, control points or patches; otherwise the file is
 //! taken as SBET (136-byte records) or SMRMSG (80-byte records) from its name (`.sbet`,
 //! `sbet*`, `.smrmsg`, `smrmsg*`) or, failing that, from its size and the plausibility of its
-//! first records. When both readings remain possible the file is refused as ambiguous.
+//! first records. When both readings remain possible the file is refused as ambiguous. Raw
+//! IMU and GNSS records (docs/formats.md: 56-byte records, no header) are recognised by name
+//! only (`imu*`, `*.imu`; `gnss*`, `*.gnss`, as the simulator writes `imu.bin`, `gnss.bin`).
 
+use super::gnss::GnssFile;
+use super::imu::ImuFile;
 use super::las::inspect::{is_las, read_header, LasHeaderInfo};
 use super::mapped::f64_le;
 use super::patches::{read_patches, PATCHES_HEADER};
@@ -46,6 +50,32 @@ pub enum FileKind {
     Patches,
     /// LAS, LAZ or COPC point cloud.
     Las,
+    /// Raw IMU records.
+    Imu,
+    /// Raw GNSS position fixes.
+    Gnss,
+}
+
+/// Ranges over raw IMU records (min, max per body axis x, y, z).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ImuRanges {
+    /// Specific force (m/s^2).
+    pub specific_force_mps2: [(f64, f64); 3],
+    /// Angular rate (deg/s).
+    pub rate_dps: [(f64, f64); 3],
+}
+
+/// Ranges over raw GNSS fixes.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct GnssRanges {
+    /// Latitude min, max (deg).
+    pub lat_deg: (f64, f64),
+    /// Longitude min, max (deg).
+    pub lon_deg: (f64, f64),
+    /// Ellipsoidal height min, max (m).
+    pub h_m: (f64, f64),
+    /// North, east, down 1-sigma min, max (m).
+    pub sigma_m: [(f64, f64); 3],
 }
 
 /// One time gap: an interval longer than [`GAP_FACTOR`] times the median.
@@ -150,6 +180,12 @@ pub struct FileInfo {
     /// Profile summary (binary or CSV profiles).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub profiles: Option<ProfileInfo>,
+    /// Specific force and rate ranges (raw IMU).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imu: Option<ImuRanges>,
+    /// Position and sigma ranges (raw GNSS).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gnss: Option<GnssRanges>,
 }
 
 /// Recognises `path` and summarises it; the file is fully validated by its reader first.
@@ -168,6 +204,8 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
         smrmsg: None,
         las: None,
         profiles: None,
+        imu: None,
+        gnss: None,
     };
     match kind {
         FileKind::Sbet => {
@@ -216,6 +254,49 @@ pub fn describe(path: &Path) -> Result<FileInfo> {
             info.records = p.tally.returns;
             info.profiles = Some(p);
         }
+        FileKind::Imu => {
+            let f = ImuFile::open(path)?;
+            info.records = f.len() as u64;
+            info.time = Some(time_info(f.len(), |i| f.time_s(i)));
+            let (mut lo, mut hi) = ([f64::INFINITY; 6], [f64::NEG_INFINITY; 6]);
+            for i in 0..f.len() {
+                let r = f.record(i);
+                let v = [r.f_b, r.w_b.map(f64::to_degrees)].concat();
+                for k in 0..6 {
+                    (lo[k], hi[k]) = (lo[k].min(v[k]), hi[k].max(v[k]));
+                }
+            }
+            info.imu = Some(ImuRanges {
+                specific_force_mps2: [0, 1, 2].map(|k| (lo[k], hi[k])),
+                rate_dps: [3, 4, 5].map(|k| (lo[k], hi[k])),
+            });
+        }
+        FileKind::Gnss => {
+            let f = GnssFile::open(path)?;
+            info.records = f.len() as u64;
+            info.time = Some(time_info(f.len(), |i| f.time_s(i)));
+            let (mut lo, mut hi) = ([f64::INFINITY; 6], [f64::NEG_INFINITY; 6]);
+            for i in 0..f.len() {
+                let r = f.record(i);
+                let v = [
+                    r.lat_rad.to_degrees(),
+                    r.lon_rad.to_degrees(),
+                    r.h_m,
+                    r.sigma_ned_m[0],
+                    r.sigma_ned_m[1],
+                    r.sigma_ned_m[2],
+                ];
+                for k in 0..6 {
+                    (lo[k], hi[k]) = (lo[k].min(v[k]), hi[k].max(v[k]));
+                }
+            }
+            info.gnss = Some(GnssRanges {
+                lat_deg: (lo[0], hi[0]),
+                lon_deg: (lo[1], hi[1]),
+                h_m: (lo[2], hi[2]),
+                sigma_m: [3, 4, 5].map(|k| (lo[k], hi[k])),
+            });
+        }
         FileKind::ControlPoints => info.records = read_control_points(path)?.len() as u64,
         FileKind::Patches => info.records = read_patches(path)?.len() as u64,
     }
@@ -247,6 +328,12 @@ fn detect(path: &Path, size: u64) -> Result<FileKind> {
     }
     if name.ends_with(".smrmsg") || name.starts_with("smrmsg") {
         return Ok(FileKind::Smrmsg);
+    }
+    if name.ends_with(".imu") || name.starts_with("imu") {
+        return Ok(FileKind::Imu);
+    }
+    if name.ends_with(".gnss") || name.starts_with("gnss") {
+        return Ok(FileKind::Gnss);
     }
     let sbet =
         size.is_multiple_of(SBET_RECORD_BYTES as u64) && plausible(path, SBET_RECORD_BYTES, true)?;
@@ -450,6 +537,8 @@ impl fmt::Display for FileInfo {
             FileKind::ProfilesCsv => "CSV profiles",
             FileKind::ControlPoints => "control points (CSV)",
             FileKind::Patches => "reference planar patches (CSV)",
+            FileKind::Imu => "raw IMU records",
+            FileKind::Gnss => "raw GNSS positions",
             FileKind::Las => match &self.las {
                 Some(h) if h.copc => "COPC point cloud",
                 Some(h) if h.compressed => "LAZ point cloud",
@@ -510,6 +599,29 @@ impl fmt::Display for FileInfo {
                 r(ro, 1.0, 3),
                 r(pi, 1.0, 3),
                 r(he, 1.0, 3)
+            )?;
+        }
+        if let Some(m) = &self.imu {
+            let r = |v: [(f64, f64); 3], digits: usize| {
+                v.map(|(a, b)| format!("{a:.digits$} .. {b:.digits$}"))
+                    .join(", ")
+            };
+            write!(
+                f,
+                "\n  specific force x, y, z: {} m/s^2\n  angular rate x, y, z: {} deg/s",
+                r(m.specific_force_mps2, 3),
+                r(m.rate_dps, 3)
+            )?;
+        }
+        if let Some(g) = &self.gnss {
+            let [n, e, d] = g
+                .sigma_m
+                .map(|(a, b)| format!("{:.1} .. {:.1}", a * 1e3, b * 1e3));
+            write!(
+                f,
+                "\n  lat {:.7} .. {:.7} deg, lon {:.7} .. {:.7} deg\n  height {:.3} .. {:.3} m\n  \
+                 sigma north {n} mm, east {e} mm, down {d} mm",
+                g.lat_deg.0, g.lat_deg.1, g.lon_deg.0, g.lon_deg.1, g.h_m.0, g.h_m.1
             )?;
         }
         if let Some(h) = &self.las {

@@ -22,4 +22,5 @@ pub mod profiles_csv;
 pub(crate) mod publish;
 pub mod sbet;
 pub mod smrmsg;
+pub(crate) mod spill;
 pub mod timed;

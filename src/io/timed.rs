@@ -29,6 +29,9 @@ pub trait TimedRecord: Sized {
     }
 }
 
+/// Records validated between two releases of their mapped pages.
+const VALIDATE_RELEASE: usize = 1 << 16;
+
 /// Maximum number of fields of a [`TimedRecord`].
 const MAX_FIELDS: usize = 17;
 
@@ -86,6 +89,11 @@ impl<R: TimedRecord> TimedFile<R> {
             }
             prev_t = f[0];
             prev[..R::FIELDS].copy_from_slice(f);
+            // Validated pages are dropped as the pass goes: opening a file of hours of IMU
+            // records does not make it all resident (re-read from the page cache if touched).
+            if i % VALIDATE_RELEASE == 0 && i > 0 {
+                self.records.release(i - VALIDATE_RELEASE..i);
+            }
         }
         Ok(())
     }
@@ -124,6 +132,12 @@ impl<R: TimedRecord> TimedFile<R> {
     #[inline]
     pub fn time_s(&self, i: usize) -> f64 {
         f64_le(self.records.record(i), 0)
+    }
+
+    /// Lets the kernel drop the mapped pages of records `range` (they are re-read if touched
+    /// again): resident memory stays flat over a long pass through the file.
+    pub fn release(&self, range: std::ops::Range<usize>) {
+        self.records.release(range);
     }
 }
 

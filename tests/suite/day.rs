@@ -828,3 +828,84 @@ fn morning_report_warns_about_a_pass_with_a_gnss_outage() {
         "{timings}"
     );
 }
+
+/// Issue #26: a day whose trajectory `kinescan trajectory` made from the raw IMU + GNSS
+/// records of a 100 s drive with a 30 s GNSS outage (35-65 s, inside pass p02 of 33-66 s)
+/// flags that pass's outage in the morning report, and no other pass's. The smoother bridges
+/// the outage from both ends, so its SMRMSG may stay below the SMRMSG rule's 5 cm; the
+/// trajectory's report beside the SBET (`gnss_gaps`) names the gap.
+#[test]
+fn morning_report_flags_the_outage_of_a_trajectory_made_from_raw_records() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = format!(
+        "{}\n[raw]\nantenna_lever_arm_b_m = [0.3, 0.0, -1.2]\noutages_s = [[35.0, 65.0]]\n",
+        sim_support::BASE
+            .replace("points_per_profile = 300", "points_per_profile = 20")
+            .replace("duration_s = 14.0", "duration_s = 100.0")
+    );
+    simulated_day_of(d, &text);
+    std::fs::write(
+        d.join("trajectory.toml"),
+        "[inputs]\nimu = \"imu.bin\"\ngnss = \"gnss.bin\"\n[gnss]\n\
+         lever_arm_b_m = [0.3, 0.0, -1.2]\n[output]\nsbet = \"traj/smoothed.sbet\"\n\
+         smrmsg = \"traj/smoothed.smrmsg\"\n",
+    )
+    .unwrap();
+    ok(kinescan(&[
+        "trajectory",
+        d.join("trajectory.toml").to_str().unwrap(),
+    ]));
+    let template = std::fs::read_to_string(d.join("template.toml"))
+        .unwrap()
+        .replace(
+            "sbet = \"trajectory.sbet\"",
+            "sbet = \"traj/smoothed.sbet\"",
+        )
+        .replace(
+            "smrmsg = \"trajectory.smrmsg\"",
+            "smrmsg = \"traj/smoothed.smrmsg\"",
+        );
+    assert!(
+        template.contains("\"traj/smoothed.sbet\"")
+            && template.contains("\"traj/smoothed.smrmsg\"")
+    );
+    std::fs::write(d.join("template.toml"), template).unwrap();
+    let day = day_file(d, "day", "out", "{ kind = \"per_pass\" }", &three_passes());
+    set_unit_s(&day, 60.0);
+    ok(kinescan(&["day", day.to_str().unwrap(), "-q"]));
+    let out = d.join("out");
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("day.report.json")).unwrap()).unwrap();
+    let warnings: Vec<&str> = md
+        .split("## Warnings")
+        .nth(1)
+        .and_then(|w| w.split("\n## ").next())
+        .unwrap()
+        .lines()
+        .filter(|l| l.starts_with("| pass "))
+        .collect();
+    let about = |pass: &str| {
+        warnings
+            .iter()
+            .filter(|w| w.contains(&format!("pass {pass}: ")) && w.contains("GNSS outage"))
+            .count()
+    };
+    assert_eq!(about("p02"), 1, "{md}");
+    assert_eq!((about("p01"), about("p03")), (0, 0), "{md}");
+    let passes = report["passes"].as_array().unwrap();
+    let h = &passes[1]["trajectory"];
+    let (smrmsg, reported) = (
+        h["outages"].as_array().unwrap(),
+        h["reported_gnss_gaps"].as_array().unwrap(),
+    );
+    println!("p02: SMRMSG outages {smrmsg:?}, reported GNSS gaps {reported:?}");
+    assert_eq!(smrmsg.len() + reported.len(), 1, "{h}");
+    if let Some(g) = reported.first() {
+        // From the last fix before to the first after: 30 s plus one fix interval (0.1 s).
+        let span = g["span_s"].as_array().unwrap();
+        let seconds = span[1].as_f64().unwrap() - span[0].as_f64().unwrap();
+        assert!((seconds - 30.1).abs() <= 1e-6, "gap of {seconds} s");
+    }
+}

@@ -11,6 +11,8 @@
 use crate::common;
 
 use kinescan::io::csd::{CsdFile, CSD_HEADER_BYTES, CSD_PULSE_BYTES};
+use kinescan::io::gnss::{GnssFile, GNSS_RECORD_BYTES};
+use kinescan::io::imu::{ImuFile, IMU_RECORD_BYTES};
 use kinescan::io::info::describe;
 use kinescan::io::patches::read_patches;
 use kinescan::io::points::read_control_points;
@@ -46,10 +48,12 @@ enum Parser {
     ScenarioToml,
     DayToml,
     Csd,
+    Imu,
+    Gnss,
 }
 
 impl Parser {
-    const ALL: [Parser; 10] = [
+    const ALL: [Parser; 12] = [
         Parser::Sbet,
         Parser::Smrmsg,
         Parser::ProfilesBinary,
@@ -60,6 +64,8 @@ impl Parser {
         Parser::ScenarioToml,
         Parser::DayToml,
         Parser::Csd,
+        Parser::Imu,
+        Parser::Gnss,
     ];
 
     fn file_name(self) -> &'static str {
@@ -74,6 +80,9 @@ impl Parser {
             Parser::ScenarioToml => "fuzz_scenario.toml",
             Parser::DayToml => "fuzz_day.toml",
             Parser::Csd => "fuzz.csd",
+            // `info` recognises raw records by name (imu*, gnss*).
+            Parser::Imu => "imu_fuzz.bin",
+            Parser::Gnss => "gnss_fuzz.bin",
         }
     }
 
@@ -113,6 +122,8 @@ impl Parser {
                     pulse.map_err(e)?;
                 }
             }
+            Parser::Imu => ImuFile::open(path).map(|_| ()).map_err(e)?,
+            Parser::Gnss => GnssFile::open(path).map(|_| ()).map_err(e)?,
         }
         Ok(())
     }
@@ -225,8 +236,29 @@ fn make_samples() -> Samples {
     if let Some(real) = common::realdata("fuzz samples") {
         csd.push(csd_head(&read(real.join("pdal/sample.csd")), 12));
     }
+    // Raw IMU and GNSS records: 3 s of the raw city block (600 IMU records, 30 fixes).
+    let raw_dir = dir.join("raw");
+    std::fs::create_dir(&raw_dir).unwrap();
+    let raw_sc = std::fs::read_to_string(root.join("pipelines/scenario_raw_city_block.toml"))
+        .unwrap()
+        .replace("duration_s = 120.0", "duration_s = 3.0");
+    let raw_sc = Scenario::parse(&raw_sc, "raw fuzz samples").unwrap();
+    assert_eq!(raw_sc.duration_s, 3.0);
+    sim::raw::write_raw(&raw_sc, &raw_dir).unwrap();
+    let raw_file = |name: &str| read(raw_dir.join(name));
+    let imu = vec![head_records(
+        &raw_file(sim::raw::files::IMU),
+        IMU_RECORD_BYTES,
+        12,
+    )];
+    let gnss = vec![head_records(
+        &raw_file(sim::raw::files::GNSS),
+        GNSS_RECORD_BYTES,
+        12,
+    )];
     let by_parser = vec![
-        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, csd,
+        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, csd, imu,
+        gnss,
     ];
     Samples { dir, by_parser }
 }
@@ -570,6 +602,15 @@ fn fuzz_all(cases: u32) {
         "KINESCAN_FUZZ_ONLY={only:?} names no parser"
     );
     for parser in chosen {
+        // The raw IMU and GNSS records are read by the SBET's and SMRMSG's generic reader
+        // (`io::timed`, fuzzed at full length there): the long run gives them a fifth of
+        // the cases each (about 4 s each in CI).
+        let raw = matches!(parser, Parser::Imu | Parser::Gnss);
+        let cases = if raw && cases > QUICK_CASES {
+            (cases / 5).max(QUICK_CASES)
+        } else {
+            cases
+        };
         let (n, accepted, seconds) = fuzz(parser, cases);
         eprintln!(
             "fuzz {parser:?}: {n} cases in {seconds:.1} s ({accepted} parsed to a value), \

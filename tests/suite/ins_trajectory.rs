@@ -581,3 +581,106 @@ fn trajectory_command_line() {
         .unwrap();
     assert!(o.status.success() && String::from_utf8_lossy(&o.stdout).contains("Example"));
 }
+
+/// Issue #26 item 4 end to end: the demo's city block (62 s) with its raw IMU + GNSS records,
+/// `kinescan trajectory`, `run` on the smoothed SBET + SMRMSG, the cloud against the truth,
+/// and `diagnose` with the smoother's error model (`diagnose.nav_error_model`): the verdict
+/// is `none` (no effect was injected; the model is the smoother's own).
+#[test]
+fn raw_records_to_trajectory_to_run_to_diagnose_give_verdict_none() {
+    use kinescan::app::diagnose::report::Verdict;
+    let started = std::time::Instant::now();
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let text = format!(
+        "{}\n[raw]\nantenna_lever_arm_b_m = {LEVER:?}\n",
+        kinescan::app::demo::SCENARIO
+    );
+    let sc = Scenario::parse(&text, "raw city block").unwrap();
+    crate::sim_support::run(&sc, &d.join("survey"), 2);
+    std::fs::write(
+        d.join("trajectory.toml"),
+        format!(
+            "[inputs]\nimu = \"survey/imu.bin\"\ngnss = \"survey/gnss.bin\"\n[gnss]\n\
+             lever_arm_b_m = {LEVER:?}\n[output]\nsbet = \"traj/smoothed.sbet\"\n\
+             smrmsg = \"traj/smoothed.smrmsg\"\n"
+        ),
+    )
+    .unwrap();
+    let tr = kinescan::ins::run(&d.join("trajectory.toml"), &[]).unwrap();
+    let pipeline = kinescan::app::demo::PIPELINE
+        .replace("survey/trajectory.sbet", "traj/smoothed.sbet")
+        .replace("survey/trajectory.smrmsg", "traj/smoothed.smrmsg");
+    assert!(
+        pipeline.contains("\"traj/smoothed.sbet\"")
+            && pipeline.contains("\"traj/smoothed.smrmsg\"")
+    );
+    let pipeline =
+        format!("{pipeline}\n[diagnose]\nnav_error_model = \"traj/smoothed.error_model.json\"\n");
+    std::fs::write(d.join("pipeline.toml"), pipeline).unwrap();
+    let p = kinescan::pipeline::config::load(&d.join("pipeline.toml"), &[]).unwrap();
+    let dc = p.config.diagnose.clone().unwrap();
+    let (tau_p, tau_a) = (
+        dc.nav_position_tau_s.expect("position tau from the model"),
+        dc.nav_attitude_tau_s.expect("attitude tau from the model"),
+    );
+    assert_eq!(
+        (dc.nav_position_scale, dc.nav_attitude_scale),
+        (Some(1.0), Some(1.0))
+    );
+    let run = kinescan::pipeline::run(&p, &kinescan::pipeline::RunOptions::default()).unwrap();
+    let e = kinescan::app::demo::cloud_error(&p, &run, &d.join("survey")).unwrap();
+    let [rms, p95, max] = e.error_3d_m;
+    let [h, v] = e.error_h_v_rms_m;
+    let norm = e
+        .normalised_rms_xyz
+        .expect("the demo pipeline writes sigmas");
+    println!(
+        "trajectory {} records ({} fixes used, {} rejected); error model tau position {tau_p:.2} s, \
+         attitude {tau_a:.2} s; cloud vs truth over {} points: 3D RMS {:.1} mm, 95% {:.1} mm, \
+         max {:.1} mm, horizontal RMS {:.1} mm, vertical {:.1} mm; error/sigma RMS {:.2} {:.2} {:.2}",
+        tr.records,
+        tr.filter.gnss_used,
+        tr.filter.gnss_rejected,
+        e.compared,
+        rms * 1e3,
+        p95 * 1e3,
+        max * 1e3,
+        h * 1e3,
+        v * 1e3,
+        norm[0],
+        norm[1],
+        norm[2]
+    );
+    // Every point written compared with its truth (2,258,436 of 3,600,000 returns read: the
+    // others have no echo).
+    assert_eq!(e.compared, run.totals.written);
+    // The smoothed trajectory (3.6 mm, 0.002-0.008 deg) and the scanner's 4 mm range and
+    // 0.002 deg angle noise at up to 40 m give millimetres; the simulator's own SBET (1.5 cm,
+    // 0.003-0.008 deg) gives 2-3 cm. 15 mm is the bound of a trajectory as good as the
+    // issue's acceptance (2.5 cm position) would not meet.
+    assert!(rms <= 0.015, "3D RMS {rms} m");
+    // The per-point sigmas are honest: error / sigma RMS near 1 (within 0.5-1.5).
+    for x in norm {
+        assert!((0.5..=1.5).contains(&x), "error/sigma RMS {norm:?}");
+    }
+    let req = kinescan::app::diagnose::Request {
+        patches: d.join("survey/patches.csv"),
+        control_points: None,
+        out_dir: d.join("diag"),
+    };
+    let dg = kinescan::app::diagnose::run(&p, &req).unwrap();
+    println!(
+        "diagnosis: {} ({}); whole chain {:.0} s",
+        dg.headline(),
+        dg.reason,
+        started.elapsed().as_secs_f64()
+    );
+    assert_eq!(
+        dg.verdict,
+        Verdict::None,
+        "{}: {}",
+        dg.headline(),
+        dg.reason
+    );
+}

@@ -8,10 +8,18 @@
 //! first second (5x within seconds in the simulator, decimetres to metres in practice), while
 //! the day's median is the GNSS-aided level. A gap is a step between SBET records longer than
 //! [`GAP_FACTOR`] times the file's median step.
+//!
+//! A trajectory made by `kinescan trajectory` has a smoothed SMRMSG whose RMS in an outage
+//! may stay below [`OUTAGE_MIN_M`] (2.9 cm through 30 s in the simulator: the smoother bridges
+//! the gap from both ends); its run report beside the SBET ([`crate::ins::report_path`])
+//! lists the GNSS gaps themselves, and those the SMRMSG does not show are added
+//! ([`add_reported_gaps`]).
 
 use crate::io::smrmsg::SmrmsgFile;
 use crate::trajectory::Trajectory;
+use crate::{Error, Result};
 use serde::Serialize;
+use std::path::Path;
 
 /// Horizontal RMS above this multiple of the file's median marks an outage.
 pub const OUTAGE_FACTOR: f64 = 3.0;
@@ -45,6 +53,81 @@ pub struct TrajectoryHealth {
     pub outages: Vec<Outage>,
     /// SBET gaps within the pass: [last record before, first record after] (GPS s).
     pub gaps_s: Vec<[f64; 2]>,
+    /// GNSS gaps within the pass from the `kinescan trajectory` report beside the SBET that
+    /// no outage of the SMRMSG overlaps.
+    pub reported_gnss_gaps: Vec<ReportedGap>,
+}
+
+/// A GNSS gap listed by `kinescan trajectory`'s report (`gnss_gaps`, docs/trajectory.md).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ReportedGap {
+    /// Last fix before the gap and first fix after it (GPS s).
+    pub span_s: [f64; 2],
+    /// Largest smoothed horizontal position sigma inside (m).
+    pub max_horizontal_sigma_m: f64,
+}
+
+impl ReportedGap {
+    /// Duration without a fix (s).
+    pub fn seconds(&self) -> f64 {
+        self.span_s[1] - self.span_s[0]
+    }
+}
+
+/// The GNSS gaps of the `kinescan trajectory` report beside `sbet` (its default name,
+/// [`crate::ins::report_path`]); none when there is no such file or it is another kind of
+/// report (no `gnss_gaps` and `filter`). A file that is not JSON is refused with its name.
+pub fn reported_gaps(sbet: &Path) -> Result<Vec<ReportedGap>> {
+    let path = crate::ins::report_path(sbet);
+    let bytes = match std::fs::read(&path) {
+        Ok(b) => b,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(Error::io(&path, e)),
+    };
+    let v: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
+        Error::bad_file(
+            &path,
+            format!("the trajectory report beside the SBET is not JSON ({e})"),
+        )
+    })?;
+    let (Some(gaps), true) = (v["gnss_gaps"].as_array(), v["filter"].is_object()) else {
+        return Ok(Vec::new());
+    };
+    let bad = |k: usize, what: &str| {
+        Error::bad_record(
+            &path,
+            format!("gnss_gaps[{k}]"),
+            format!("{what} missing or not a number"),
+        )
+    };
+    gaps.iter()
+        .enumerate()
+        .map(|(k, g)| {
+            let num = |key: &str| g[key].as_f64().ok_or_else(|| bad(k, key));
+            Ok(ReportedGap {
+                span_s: [num("from_s")?, num("to_s")?],
+                max_horizontal_sigma_m: num("max_horizontal_sigma_m")?,
+            })
+        })
+        .collect()
+}
+
+/// Adds to each pass (`spans` as for [`per_pass`]) the reported gaps that overlap it and that
+/// none of its SMRMSG outages overlaps.
+pub fn add_reported_gaps(
+    health: &mut [TrajectoryHealth],
+    spans: &[Option<[f64; 2]>],
+    gaps: &[ReportedGap],
+) {
+    let overlaps = |a: [f64; 2], b: [f64; 2]| a[0] <= b[1] && b[0] <= a[1];
+    for (h, s) in health.iter_mut().zip(spans) {
+        let Some(span) = *s else { continue };
+        for g in gaps.iter().filter(|g| overlaps(g.span_s, span)) {
+            if !h.outages.iter().any(|o| overlaps(o.span_s, g.span_s)) {
+                h.reported_gnss_gaps.push(g.clone());
+            }
+        }
+    }
 }
 
 fn median(mut v: Vec<f64>) -> Option<f64> {

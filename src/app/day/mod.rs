@@ -496,7 +496,13 @@ fn day_report(
     let c = &day.template.config;
     let traj = crate::pipeline::prepare::open_trajectory(c)?;
     let spans: Vec<Option<[f64; 2]>> = passes.iter().map(|p| p.time_span_s).collect();
-    for (p, h) in passes.iter_mut().zip(health::per_pass(&traj, &spans)) {
+    let mut healths = health::per_pass(&traj, &spans);
+    health::add_reported_gaps(
+        &mut healths,
+        &spans,
+        &health::reported_gaps(&c.inputs.sbet)?,
+    );
+    for (p, h) in passes.iter_mut().zip(healths) {
         p.trajectory = h;
     }
     let first = traj.sbet().record(0);

@@ -239,6 +239,17 @@ fn warnings(r: &DayReport, plan: &Plan) -> Vec<String> {
                 o.peak_horizontal_rms_m * 1e3
             ));
         }
+        for g in &p.trajectory.reported_gnss_gaps {
+            w.push(format!(
+                "pass {}: GNSS outage of {:.0} s (GPS {:.1} to {:.1} s) in the trajectory \
+                 report (kinescan trajectory), smoothed horizontal sigma up to {:.0} mm",
+                p.name,
+                g.seconds(),
+                g.span_s[0],
+                g.span_s[1],
+                g.max_horizontal_sigma_m * 1e3
+            ));
+        }
         if !p.trajectory.gaps_s.is_empty() {
             let longest = p.trajectory.gaps_s.iter().map(|g| g[1] - g[0]);
             w.push(format!(
@@ -357,6 +368,12 @@ fn passes(r: &DayReport) -> Vec<Vec<String>> {
             .outages
             .iter()
             .map(|o| format!("{:.0} s at {:.1}", o.seconds(), o.span_s[0]))
+            .chain(
+                p.trajectory
+                    .reported_gnss_gaps
+                    .iter()
+                    .map(|g| format!("{:.0} s at {:.1} (no fix)", g.seconds(), g.span_s[0])),
+            )
             .collect();
         let file = pass_file(r, &p.name);
         let diagnosis =

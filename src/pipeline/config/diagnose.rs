@@ -2,7 +2,9 @@
 
 use super::refusal::{refuse, require_positive, Refusal};
 use crate::io::config_file::ConfigPath;
+use crate::{Error, Result};
 use serde::{Deserialize, Serialize};
+use std::path::Path;
 
 /// `[diagnose]`: what `kinescan diagnose` reads and how it turns returns on reference patches
 /// into observations (docs/diagnosis.md).
@@ -45,6 +47,12 @@ pub struct DiagnoseConfig {
     /// True / SMRMSG sigma of the INS attitude errors. Absent: estimated.
     #[serde(default)]
     pub nav_attitude_scale: Option<f64>,
+    /// The navigation error model that `kinescan trajectory` exported with the SBET
+    /// (`output.error_model`, docs/trajectory.md): where the four keys above are absent, the
+    /// correlation times are fitted to its autocorrelation ([`fit_correlation_time`]) and the
+    /// scales are 1 (the SMRMSG is that smoother's own sigma). Absent: nothing is filled.
+    #[serde(default)]
+    pub nav_error_model: Option<ConfigPath>,
     /// A reference with more than this share of its returns set aside as foreign is reported
     /// and not used (docs/diagnosis.md, "Foreign returns").
     #[serde(default = "default_max_foreign_share")]
@@ -97,6 +105,108 @@ fn default_max_visit_s() -> f64 {
 }
 /// Where the search for the correlation times starts when they are estimated (s).
 pub const START_NAV_TAU_S: [f64; 2] = [60.0, 30.0];
+/// Position (north, east, down) and attitude (roll, pitch, heading) components of the error
+/// model file.
+const POSITION_COMPONENTS: [&str; 3] = ["north_m", "east_m", "down_m"];
+const ATTITUDE_COMPONENTS: [&str; 3] = ["roll_rad", "pitch_rad", "heading_rad"];
+
+/// The position and attitude correlation times (s) of an error-model file of `kinescan
+/// trajectory` (`components`, `lags_s`, `rho`, `pairs`).
+pub fn read_nav_error_model(path: &Path) -> Result<[f64; 2]> {
+    let key = "diagnose.nav_error_model";
+    let bad = |what: String| Error::bad_file(path, format!("{what} (the file of {key})"));
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let v: serde_json::Value = serde_json::from_slice(&bytes).map_err(|e| {
+        bad(format!(
+            "not JSON ({e}): expected the error model of kinescan trajectory"
+        ))
+    })?;
+    let numbers = |x: &serde_json::Value| -> Option<Vec<f64>> {
+        // A NaN correlation is written as null: it is left out (as NaN).
+        x.as_array()
+            .map(|a| a.iter().map(|y| y.as_f64().unwrap_or(f64::NAN)).collect())
+    };
+    let lags = numbers(&v["lags_s"]).ok_or_else(|| bad("no lags_s array".into()))?;
+    let pairs = numbers(&v["pairs"]).ok_or_else(|| bad("no pairs array".into()))?;
+    let names: Vec<&str> = v["components"]
+        .as_array()
+        .map(|a| a.iter().filter_map(|c| c.as_str()).collect())
+        .ok_or_else(|| bad("no components array".into()))?;
+    let rho = v["rho"]
+        .as_array()
+        .ok_or_else(|| bad("no rho array".into()))?;
+    let tau = |group: [&str; 3]| -> Result<f64> {
+        let mut series = Vec::new();
+        for c in group {
+            let k = names
+                .iter()
+                .position(|n| *n == c)
+                .ok_or_else(|| bad(format!("no component {c}")))?;
+            let r = rho
+                .get(k)
+                .and_then(numbers)
+                .filter(|r| r.len() == lags.len());
+            let r = r.ok_or_else(|| bad(format!("rho[{k}] ({c}) missing or not one per lag")))?;
+            series.push(r);
+        }
+        let used: Vec<(f64, [f64; 3])> = (0..lags.len())
+            .filter(|&l| pairs.get(l).is_some_and(|p| *p > 0.0))
+            .map(|l| (lags[l], [series[0][l], series[1][l], series[2][l]]))
+            .collect();
+        fit_correlation_time(&used).ok_or_else(|| {
+            bad(format!(
+                "no correlation time fits {group:?}: too few lags with pairs (a run shorter \
+                 than a few GNSS epochs?)"
+            ))
+        })
+    };
+    Ok([tau(POSITION_COMPONENTS)?, tau(ATTITUDE_COMPONENTS)?])
+}
+
+/// The correlation time `tau` (s) of a first-order Gauss-Markov process whose
+/// autocorrelation `exp(-lag / tau)` fits the components' correlations best (least squares
+/// over every lag and component, finite values of lags > 0 only; golden-section search on
+/// `ln tau` between a tenth of the shortest lag and ten times the longest). None with fewer
+/// than two usable lags.
+pub fn fit_correlation_time(lags: &[(f64, [f64; 3])]) -> Option<f64> {
+    let used: Vec<(f64, Vec<f64>)> = lags
+        .iter()
+        .filter(|(l, _)| l.is_finite() && *l > 0.0)
+        .map(|(l, r)| (*l, r.iter().copied().filter(|x| x.is_finite()).collect()))
+        .filter(|(_, r): &(f64, Vec<f64>)| !r.is_empty())
+        .collect();
+    if used.len() < 2 {
+        return None;
+    }
+    let cost = |ln_tau: f64| -> f64 {
+        let tau = ln_tau.exp();
+        used.iter()
+            .map(|(l, r)| {
+                let m = (-l / tau).exp();
+                r.iter().map(|x| (x - m).powi(2)).sum::<f64>()
+            })
+            .sum()
+    };
+    let lo_lag = used.iter().map(|u| u.0).fold(f64::INFINITY, f64::min);
+    let hi_lag = used.iter().map(|u| u.0).fold(0.0, f64::max);
+    let (mut a, mut b) = ((lo_lag / 10.0).ln(), (hi_lag * 10.0).ln());
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (cost(c), cost(d));
+    while b - a > 1e-9 {
+        if fc < fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = cost(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = cost(d);
+        }
+    }
+    Some((0.5 * (a + b)).exp())
+}
+
 fn default_max_foreign_share() -> f64 {
     0.25
 }
@@ -126,8 +236,21 @@ fn default_diagnose_alpha() -> f64 {
 }
 
 impl DiagnoseConfig {
+    /// Fills the absent navigation error keys from `nav_error_model` (when given).
+    pub(super) fn resolve_nav_error_model(&mut self) -> Result<()> {
+        let Some(path) = &self.nav_error_model else {
+            return Ok(());
+        };
+        let [position, attitude] = read_nav_error_model(path)?;
+        self.nav_position_tau_s.get_or_insert(position);
+        self.nav_attitude_tau_s.get_or_insert(attitude);
+        self.nav_position_scale.get_or_insert(1.0);
+        self.nav_attitude_scale.get_or_insert(1.0);
+        Ok(())
+    }
+
     /// Checks tolerances, correlation times and visit sizes.
-    pub(super) fn check(&self) -> Result<(), Refusal> {
+    pub(super) fn check(&self) -> std::result::Result<(), Refusal> {
         let positive = [
             ("diagnose.plane_tolerance_m", self.plane_tolerance_m),
             ("diagnose.visit_gap_s", self.visit_gap_s),
@@ -176,5 +299,58 @@ impl DiagnoseConfig {
             ));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A file with exponential correlations gives back their correlation times; the scales
+    /// are 1; a key given in the file wins; a missing file is named with the key.
+    #[test]
+    fn nav_error_model_fills_the_absent_keys() {
+        let dir = tempfile::tempdir().unwrap();
+        let lags = [0.1, 0.3, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0];
+        let rho = |tau: f64| lags.map(|l: f64| (-l / tau).exp()).to_vec();
+        let model = serde_json::json!({
+            "components": ["north_m", "east_m", "down_m", "vel_north_mps", "vel_east_mps",
+                           "vel_down_mps", "roll_rad", "pitch_rad", "heading_rad"],
+            "lags_s": lags,
+            "rho": [rho(7.0), rho(7.0), rho(7.0), rho(1.0), rho(1.0), rho(1.0),
+                    rho(30.0), rho(30.0), rho(30.0)],
+            "pairs": vec![4; 8],
+        });
+        let path = dir.path().join("m.error_model.json");
+        std::fs::write(&path, model.to_string()).unwrap();
+        let [p, a] = read_nav_error_model(&path).unwrap();
+        // The golden-section search stops at 1e-9 in ln tau.
+        assert!(
+            (p - 7.0).abs() <= 1e-6 && (a - 30.0).abs() <= 1e-6,
+            "{p} {a}"
+        );
+        let mut cfg: DiagnoseConfig = toml::from_str(&format!(
+            "nav_error_model = {:?}\nnav_attitude_tau_s = 12.0",
+            path.display().to_string()
+        ))
+        .unwrap();
+        cfg.resolve_nav_error_model().unwrap();
+        let got = (
+            cfg.nav_position_tau_s,
+            cfg.nav_attitude_tau_s,
+            cfg.nav_position_scale,
+            cfg.nav_attitude_scale,
+        );
+        assert!(got.0.is_some_and(|t| (t - 7.0).abs() <= 1e-6), "{got:?}");
+        assert_eq!((got.1, got.2, got.3), (Some(12.0), Some(1.0), Some(1.0)));
+        let missing = dir.path().join("none.json");
+        let err = read_nav_error_model(&missing).unwrap_err().to_string();
+        assert!(err.contains("none.json"), "{err}");
+        std::fs::write(&path, "{}").unwrap();
+        let err = read_nav_error_model(&path).unwrap_err().to_string();
+        assert!(
+            err.contains("diagnose.nav_error_model") && err.contains("lags_s"),
+            "{err}"
+        );
     }
 }

@@ -85,8 +85,9 @@ pub struct LoadedPipeline {
 /// Reads `path`, applies `KEY=VALUE` overrides (`io::config_file`), validates and resolves
 /// relative paths against the file's folder.
 pub fn load(path: &Path, overrides: &[String]) -> Result<LoadedPipeline> {
-    let parsed = config_file::load::<PipelineConfig>(path, overrides)?;
+    let mut parsed = config_file::load::<PipelineConfig>(path, overrides)?;
     validate(&parsed.value, &parsed.source)?;
+    resolve(&mut parsed.value)?;
     Ok(LoadedPipeline {
         path: path.to_path_buf(),
         config: parsed.value,
@@ -105,13 +106,22 @@ impl LoadedPipeline {
         let dir = crate::io::atomic::parent_dir(&self.path);
         let dir = std::path::absolute(dir).map_err(|e| Error::io(&self.path, e))?;
         let source = self.path.display().to_string();
-        let parsed = config_file::parse::<PipelineConfig>(&body, &source, &dir, set)?;
+        let mut parsed = config_file::parse::<PipelineConfig>(&body, &source, &dir, set)?;
         validate(&parsed.value, &parsed.source)?;
+        resolve(&mut parsed.value)?;
         Ok(LoadedPipeline {
             path: self.path.clone(),
             config: parsed.value,
             overrides: self.overrides.iter().chain(set).cloned().collect(),
         })
+    }
+}
+
+/// Values read from the files a configuration names: `diagnose.nav_error_model`.
+fn resolve(c: &mut PipelineConfig) -> Result<()> {
+    match c.diagnose.as_mut() {
+        Some(d) => d.resolve_nav_error_model(),
+        None => Ok(()),
     }
 }
 
