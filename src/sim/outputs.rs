@@ -234,7 +234,7 @@ pub(crate) fn write_truth_json(
     let mirror = &m.clock.mirror;
     let fx = &sc.effects;
     let e = &sc.nav_errors;
-    let doc = serde_json::json!({
+    let mut doc = serde_json::json!({
         "format": "kinescan-sim-truth/1",
         "scenario": sc.name,
         "seed": sc.seed,
@@ -295,5 +295,20 @@ pub(crate) fn write_truth_json(
         },
         "truth_points_layout": "64-byte header (magic KSTRUTH1, u32 version 1, u32 record bytes 24, u32 flags, u32 reserved, u64 count, 32 reserved); per return in profiles.bin order: f64 x, y, z ECEF (m), NaN when missing",
     });
+    if !e.is_plain() {
+        // Written only off the defaults, so that a default survey's truth.json is today's.
+        let extra = serde_json::json!({
+            "model": e.model,
+            "white_share": e.white_share,
+            "position_tau2_s": e.position_tau2_s,
+            "attitude_tau2_s": e.attitude_tau2_s,
+            "second_share": e.second_share,
+            "smrmsg_factor": e.smrmsg_factor,
+            "zero_rate_fields": e.zero_rate_fields,
+        });
+        if let (Some(n), Some(x)) = (doc["nav_errors"].as_object_mut(), extra.as_object()) {
+            n.extend(x.clone());
+        }
+    }
     write_json(&out_dir.join(files::TRUTH_JSON), &doc)
 }
