@@ -7,11 +7,12 @@
 //! ECEF (m); NaN in all three for a missing return.
 
 use super::dynamics::Frame;
+use super::foreign::Foreign;
 use super::nav::NavCounts;
 use super::route::Route;
 use super::scanner::ScannerModel;
 use super::scenario::{Scenario, SceneKind};
-use super::scene::Shape;
+use super::scene::{Scene, Shape};
 use super::world::World;
 use super::{files, SimSummary};
 use crate::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
@@ -97,8 +98,9 @@ pub(crate) fn write_references(
     route: &Route,
     frame: Frame,
     surface_hits: &[u32],
+    foreign: Option<&Foreign>,
     out_dir: &Path,
-) -> Result<()> {
+) -> Result<ForeignCounts> {
     let points: Vec<ControlPoint> = world
         .landmarks
         .iter()
@@ -115,12 +117,62 @@ pub(crate) fn write_references(
         .collect();
     write_control_points(&out_dir.join(files::CONTROL_POINTS), &points)?;
     let mut patches = Vec::new();
+    let scene = &world.scene;
+    let mut counts = ForeignCounts::default();
+    for r in facade_rects(sc, scene) {
+        let id = r.object as usize;
+        // Street-facing facades only (local -y, face 2): building ends may hide behind a
+        // neighbour a few decimetres away and make poor references.
+        let face = 2usize;
+        if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
+            continue;
+        }
+        let key = format!("FAC{id}_{face}");
+        if let Some(f) = foreign {
+            counts.add(
+                &key,
+                surface_hits[id * 8 + face],
+                f.hits_of(r.object, surface_hits),
+            );
+        }
+        patches.push(patch(key, &frame, r.centre, r.normal, r.half[0], r.half[1]));
+    }
+    for (i, c) in ground_squares(sc, route, scene).into_iter().enumerate() {
+        let key = format!("GND{}", patches.len());
+        if let Some(f) = foreign {
+            let own = surface_hits[f.square_key(i) as usize];
+            counts.add(&key, own, f.hits_of(f.square_owner(i), surface_hits));
+        }
+        let h = GROUND_SQUARE_HALF_M;
+        patches.push(patch(key, &frame, c, scene.ground_normal(), h, h));
+    }
+    write_patches(&out_dir.join(files::PATCHES), &patches)?;
+    Ok(counts)
+}
+
+/// A candidate facade reference: the street face (local -y) of a building box, from the walk
+/// (the higher end's ground plus the kerb) to the roof.
+pub(crate) struct FacadeRect {
+    /// Building object index.
+    pub object: u32,
+    /// Rectangle centre (scene ENU, m).
+    pub centre: Vector3<f64>,
+    /// Unit normal, towards the street.
+    pub normal: Vector3<f64>,
+    /// Unit horizontal axis along the face.
+    pub along: Vector3<f64>,
+    /// Half length along `along`, half height (m).
+    pub half: [f64; 2],
+}
+
+/// Every building's street face as a reference rectangle, in object order.
+pub(crate) fn facade_rects(sc: &Scenario, scene: &Scene) -> Vec<FacadeRect> {
     let curb = if sc.scene.kind == SceneKind::Streets {
         sc.scene.curb_height_m
     } else {
         0.0
     };
-    let scene = &world.scene;
+    let mut out = Vec::new();
     for (id, obj) in scene.objects.iter().enumerate() {
         let Shape::Box {
             centre,
@@ -133,62 +185,86 @@ pub(crate) fn write_references(
         if obj.class != super::scene::Class::Building {
             continue;
         }
-        // Street-facing facades only (local -y, face 2): building ends may hide behind a
-        // neighbour a few decimetres away and make poor references.
-        for face in [2usize] {
-            if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
-                continue;
-            }
-            let (axis, sign) = (face / 2, if face % 2 == 1 { 1.0 } else { -1.0 });
-            let normal = r_l_to_enu.column(axis) * sign;
-            let along = r_l_to_enu.column(1 - axis).into_owned();
-            let half_len = half_m[1 - axis];
-            let c = centre + normal * half_m[axis];
-            let ends = [c + along * half_len, c - along * half_len];
-            let low = ends
-                .iter()
-                .map(|e| scene.ground_z(e.x, e.y))
-                .fold(f64::MIN, f64::max)
-                + curb;
-            let top = centre.z + half_m.z;
-            let mid = Vector3::new(c.x, c.y, (low + top) / 2.0);
-            patches.push(patch(
-                format!("FAC{id}_{face}"),
-                &frame,
-                mid,
-                normal.into_owned(),
-                half_len,
-                (top - low) / 2.0,
-            ));
-        }
+        let normal = -r_l_to_enu.column(1).into_owned();
+        let along = r_l_to_enu.column(0).into_owned();
+        let half_len = half_m[0];
+        let c = centre + normal * half_m[1];
+        let ends = [c + along * half_len, c - along * half_len];
+        let low = ends
+            .iter()
+            .map(|e| scene.ground_z(e.x, e.y))
+            .fold(f64::MIN, f64::max)
+            + curb;
+        let top = centre.z + half_m.z;
+        out.push(FacadeRect {
+            object: id as u32,
+            centre: Vector3::new(c.x, c.y, (low + top) / 2.0),
+            normal,
+            along,
+            half: [half_len, (top - low) / 2.0],
+        });
     }
+    out
+}
+
+/// Half size of the ground reference squares (m).
+pub(crate) const GROUND_SQUARE_HALF_M: f64 = 1.5;
+
+/// Centres (scene ENU) of the ground reference squares: every 20 m along the driving line of
+/// the part of the route driven while scanning.
+pub(crate) fn ground_squares(sc: &Scenario, route: &Route, scene: &Scene) -> Vec<Vector3<f64>> {
     let scan_end_s = sc.duration_s - sc.scanner.end_margin_s;
     let driven = if scan_end_s >= route.lap_s() {
         route.length_m()
     } else {
         route.motion(scan_end_s).s_m
     };
+    let mut out = Vec::new();
     let mut s = 10.0;
-    let up = scene.ground_normal();
     while s < driven.min(route.length_m()) - 10.0 {
         let p = route.at(s);
         let off = sc.vehicle.lane_offset_m;
         let (x, y) = (p.xy[0] - p.dir[1] * off, p.xy[1] + p.dir[0] * off);
-        let c = Vector3::new(x, y, scene.ground_z(x, y));
-        patches.push(patch(
-            format!("GND{}", patches.len()),
-            &frame,
-            c,
-            up,
-            1.5,
-            1.5,
-        ));
+        out.push(Vector3::new(x, y, scene.ground_z(x, y)));
         s += 20.0;
     }
-    write_patches(&out_dir.join(files::PATCHES), &patches)
+    out
 }
 
-fn patch(
+/// `truth.json` `foreign`: the foreign things and their returns.
+#[derive(Debug, Clone, serde::Serialize)]
+pub(crate) struct ForeignSummary {
+    /// Things placed.
+    pub things: usize,
+    /// Mixed returns at their edges (all of them, on listed patches or not).
+    pub mixed_returns: u64,
+    /// Returns on the listed patches.
+    #[serde(flatten)]
+    pub counts: ForeignCounts,
+}
+
+/// Foreign returns on the listed reference patches (`truth.json` `foreign`).
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub(crate) struct ForeignCounts {
+    /// Returns on the listed patches: their own surface's plus the foreign ones.
+    pub patch_returns: u64,
+    /// Returns from foreign things on them.
+    pub foreign_returns: u64,
+    /// Per patch: id, returns, foreign returns.
+    pub by_patch: Vec<(String, u64, u64)>,
+}
+
+impl ForeignCounts {
+    fn add(&mut self, id: &str, own: u32, foreign: u64) {
+        self.patch_returns += own as u64 + foreign;
+        self.foreign_returns += foreign;
+        self.by_patch
+            .push((id.to_string(), own as u64 + foreign, foreign));
+    }
+}
+
+/// The reference patch file's record of a rectangle (scene ENU centre and normal).
+pub(crate) fn patch(
     id: String,
     frame: &Frame,
     c: Vector3<f64>,
@@ -220,6 +296,7 @@ pub(crate) fn write_truth_json(
     route: &Route,
     nav: &NavCounts,
     summary: &SimSummary,
+    foreign: Option<&ForeignSummary>,
     out_dir: &Path,
 ) -> Result<()> {
     let sensor = |s: &crate::georef::Sensor| {
@@ -295,6 +372,14 @@ pub(crate) fn write_truth_json(
         },
         "truth_points_layout": "64-byte header (magic KSTRUTH1, u32 version 1, u32 record bytes 24, u32 flags, u32 reserved, u64 count, 32 reserved); per return in profiles.bin order: f64 x, y, z ECEF (m), NaN when missing",
     });
+    if let Some(f) = foreign {
+        let share = f.counts.foreign_returns as f64 / f.counts.patch_returns.max(1) as f64;
+        doc["foreign"] = serde_json::json!({
+            "foreign_share": sc.scene.foreign_share,
+            "measured_share": share,
+            "summary": f,
+        });
+    }
     if !e.is_plain() {
         // Written only off the defaults, so that a default survey's truth.json is today's.
         let extra = serde_json::json!({
