@@ -17,6 +17,7 @@ pub(crate) mod imu;
 pub(crate) mod nav;
 mod outputs;
 pub mod raw;
+mod references;
 pub(crate) mod route;
 pub(crate) mod scanner;
 pub mod scenario;

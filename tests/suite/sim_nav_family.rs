@@ -108,8 +108,8 @@ fn two_gauss_markov_errors_have_the_mixture_statistics_and_the_factor_scales_the
         let truth = SbetFile::open(&dir.path().join("truth.sbet")).unwrap();
         dt = truth.time_s(1) - truth.time_s(0);
         let err = nav_errors(dir.path());
-        for i in 0..6 {
-            series.push(err.iter().map(|e| e[i] / sigma[i]).collect::<Vec<f64>>());
+        for (i, s) in sigma.iter().enumerate() {
+            series.push(err.iter().map(|e| e[i] / s).collect::<Vec<f64>>());
         }
     }
     let n: usize = series.iter().map(Vec::len).sum();
@@ -166,8 +166,8 @@ fn random_walk_white_errors_have_the_stated_growing_std_and_their_increments() {
         let truth = SbetFile::open(&dir.path().join("truth.sbet")).unwrap();
         dt = truth.time_s(1) - truth.time_s(0);
         let err = nav_errors(dir.path());
-        for i in 0..6 {
-            series.push(err.iter().map(|e| e[i] / sigma[i]).collect::<Vec<f64>>());
+        for (i, s) in sigma.iter().enumerate() {
+            series.push(err.iter().map(|e| e[i] / s).collect::<Vec<f64>>());
         }
     }
     let mean_sq = |v: &mut dyn Iterator<Item = f64>| {
