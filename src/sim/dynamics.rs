@@ -7,7 +7,8 @@
 //! along the heading plus `k_pitch * a_lon` (nose up accelerating), roll from the cross slope
 //! plus `k_roll * a_lat` (rolling out of the turn), both through a second-order lag (two
 //! first-order lags of half the body time constant), plus
-//! road vibration (three sinusoids per channel, amplitude proportional to speed). The scene
+//! road vibration (three sinusoids per channel, amplitude proportional to speed; roll and
+//! pitch one sinusoid at `vibration_hz` when set). The scene
 //! attitude is rotated to the local NED frame of the vehicle's own position. Between samples
 //! the truth is, by definition, `trajectory::interpolate` of these samples.
 
@@ -145,6 +146,10 @@ impl TruthGen {
         }
         let amp = (m.v_mps / self.v_top).min(1.0);
         let vib = |ch: usize| -> f64 {
+            if let (Some(f), true) = (self.cfg.vibration_hz, ch < 2) {
+                // One sinusoid at the set frequency, the first band's seeded phase.
+                return (TAU * f * tr + self.vib[ch][0].1).sin() * amp;
+            }
             self.vib[ch]
                 .iter()
                 .map(|(f, ph)| (TAU * f * tr + ph).sin())

@@ -11,11 +11,13 @@
 mod checker;
 pub(crate) mod dynamics;
 pub(crate) mod effects;
+pub(crate) mod foreign;
 pub(crate) mod gnss;
 pub(crate) mod imu;
 pub(crate) mod nav;
 mod outputs;
 pub mod raw;
+mod references;
 pub(crate) mod route;
 pub(crate) mod scanner;
 pub mod scenario;
@@ -154,7 +156,8 @@ fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<S
     let o = &sc.origin;
     let frame = Frame::new(o.lat_deg.to_radians(), o.lon_deg.to_radians(), o.h_m);
     let route = Route::new(&sc.route, sc.vehicle.lane_offset_m, &sc.name)?;
-    let world = world::build(&sc.scene, sc.seed);
+    let mut world = world::build(&sc.scene, sc.seed);
+    let foreign = foreign::Foreign::place(&mut world, sc, &route, &frame);
     let p = |name: &str| dir.join(name);
     let mut written = vec![files::SBET, files::SMRMSG];
     let truth_sbet = sc.output.truth_sbet.then(|| p(files::TRUTH_SBET));
@@ -175,7 +178,16 @@ fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<S
         written.extend([raw::files::IMU, raw::files::GNSS, raw::files::RAW_TRUTH]);
     }
     let model = ScannerModel::new(sc);
-    let scan = scan(sc, &model, &world, frame, route.clone(), dir, opts)?;
+    let scan = scan(
+        sc,
+        &model,
+        &world,
+        foreign.as_ref(),
+        frame,
+        route.clone(),
+        dir,
+        opts,
+    )?;
     written.push(files::PROFILES);
     if opts.profiles_csv || sc.output.profiles_csv {
         crate::io::profiles_csv::export_csv(&p(files::PROFILES), &p(files::PROFILES_CSV))?;
@@ -184,7 +196,15 @@ fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<S
     if sc.output.truth_points {
         written.push(files::TRUTH_POINTS);
     }
-    outputs::write_references(sc, &world, &route, frame, &scan.surface_hits, dir)?;
+    let foreign_counts = outputs::write_references(
+        sc,
+        &world,
+        &route,
+        frame,
+        &scan.surface_hits,
+        foreign.as_ref(),
+        dir,
+    )?;
     written.extend([files::CONTROL_POINTS, files::PATCHES]);
     let summary = SimSummary {
         profiles: scan.profiles,
@@ -199,7 +219,21 @@ fn run(sc: &Scenario, out_dir: &Path, dir: &Path, opts: &SimOptions) -> Result<S
             .chain([files::TRUTH_JSON.into()])
             .collect(),
     };
-    outputs::write_truth_json(sc, &world, &model, &route, &nav_counts, &summary, dir)?;
+    let foreign = foreign.map(|f| outputs::ForeignSummary {
+        things: f.len(),
+        mixed_returns: scan.mixed,
+        counts: foreign_counts,
+    });
+    outputs::write_truth_json(
+        sc,
+        &world,
+        &model,
+        &route,
+        &nav_counts,
+        &summary,
+        foreign.as_ref(),
+        dir,
+    )?;
     Ok(summary)
 }
 
@@ -208,6 +242,8 @@ struct ScanResult {
     returns: u64,
     valid: u64,
     surface_hits: Vec<u32>,
+    /// Mixed returns at the edges of foreign things.
+    mixed: u64,
 }
 
 /// Generates and writes every profile, block by block.
@@ -215,6 +251,7 @@ fn scan(
     sc: &Scenario,
     model: &ScannerModel,
     world: &world::World,
+    foreign: Option<&foreign::Foreign>,
     frame: Frame,
     route: Route,
     out_dir: &Path,
@@ -239,8 +276,9 @@ fn scan(
     let mut buf: VecDeque<NavSample> = VecDeque::new();
     let mut base = 0u64;
     let block = ((0.5 / model.clock.period_s).round() as u32).max(1);
-    let mut surface_hits = vec![0u32; world.scene.objects.len() * 8];
-    let (mut returns, mut valid) = (0u64, 0u64);
+    let keys = foreign.map_or(world.scene.objects.len() * 8, |f| f.surface_keys());
+    let mut surface_hits = vec![0u32; keys];
+    let (mut returns, mut valid, mut mixed) = (0u64, 0u64, 0u64);
     let want_truth = truth_out.is_some();
     let mut na = n_first;
     while na < n_end {
@@ -262,7 +300,7 @@ fn scan(
         let scene = &world.scene;
         let outs: Vec<scanner::ProfileOut> = (na..nb)
             .into_par_iter()
-            .map(|n| scanner::profile(model, scene, &frame, &window, n, want_truth))
+            .map(|n| scanner::profile(model, scene, foreign, &frame, &window, n, want_truth))
             .collect();
         for o in &outs {
             writer.push_encoded(&o.records)?;
@@ -274,6 +312,7 @@ fn scan(
             }
             returns += model.points_per_profile() as u64;
             valid += o.valid as u64;
+            mixed += o.mixed as u64;
         }
         if let Some(cb) = &opts.progress {
             cb((nb - n_first) as u64, (n_end - n_first) as u64);
@@ -289,5 +328,6 @@ fn scan(
         returns,
         valid,
         surface_hits,
+        mixed,
     })
 }

@@ -8,9 +8,16 @@
 //! exactly: `z_{k+1} = phi z_k + sqrt(1 - phi^2) w_k`, `phi = exp(-dt / tau)`, `z_0 ~ N(0, 1)`.
 //! `sigma(t)` is linear between SMRMSG records, where it is the configured sigma times
 //! `outage_sigma_factor` inside an outage and 1 outside.
+//!
+//! `nav_errors.model` replaces the unit process `z` ([`UnitProcess`]): the sum of two
+//! Gauss-Markov processes (`sqrt(1 - s) z1 + sqrt(s) z2`, unit variance), or a random walk
+//! from zero plus white noise, whose variance `w + (1 - w) t / t_mid` grows with the time `t`
+//! since the start (`w` the white share, `t_mid` half the duration: 1 at mid survey and on
+//! average over the survey, so the configured sigma is the survey's RMS). The SMRMSG states
+//! `smrmsg_factor` times the true standard deviation at each epoch.
 
 use super::dynamics::TruthGen;
-use super::scenario::Scenario;
+use super::scenario::{NavErrorCfg, NavErrorModel, Scenario};
 use crate::geo::ellipsoid::{meridian_radius_m, prime_vertical_radius_m};
 use crate::geo::rotations::roll_pitch_heading;
 use crate::io::sbet::{SbetRecord, SbetWriter};
@@ -50,6 +57,99 @@ impl GaussMarkov {
     pub fn step(&mut self, rng: &mut ChaCha8Rng) {
         let w: f64 = StandardNormal.sample(rng);
         self.z = self.phi * self.z + self.drive * w;
+    }
+}
+
+/// The unit process of one error component under `nav_errors.model`: its value has standard
+/// deviation [`UnitProcess::std`] (1 for the stationary models).
+#[derive(Debug, Clone)]
+enum UnitProcess {
+    /// One Gauss-Markov process.
+    Gm(GaussMarkov),
+    /// Weighted sum of two independent Gauss-Markov processes (weights squared sum to 1).
+    TwoGm {
+        a: GaussMarkov,
+        b: GaussMarkov,
+        wa: f64,
+        wb: f64,
+    },
+    /// `sqrt(w) white + sqrt((1 - w) / t_mid) walk`, `walk` a unit Wiener process from 0.
+    RwWhite {
+        walk: f64,
+        white: f64,
+        w: f64,
+        t_mid: f64,
+        sqrt_dt: f64,
+    },
+}
+
+impl UnitProcess {
+    /// The process of a component with (first, second) correlation times `tau`. The first
+    /// Gauss-Markov process draws from `rng` (as the default model always did), everything
+    /// else from `rng2`.
+    fn new(
+        e: &NavErrorCfg,
+        tau: [f64; 2],
+        dt: f64,
+        duration_s: f64,
+        rng: &mut ChaCha8Rng,
+        rng2: &mut ChaCha8Rng,
+    ) -> Self {
+        match e.model {
+            NavErrorModel::GaussMarkov => UnitProcess::Gm(GaussMarkov::new(tau[0], dt, rng)),
+            NavErrorModel::TwoGaussMarkov => UnitProcess::TwoGm {
+                a: GaussMarkov::new(tau[0], dt, rng),
+                b: GaussMarkov::new(tau[1], dt, rng2),
+                wa: (1.0 - e.second_share).sqrt(),
+                wb: e.second_share.sqrt(),
+            },
+            NavErrorModel::RandomWalkWhite => UnitProcess::RwWhite {
+                walk: 0.0,
+                white: StandardNormal.sample(rng2),
+                w: e.white_share,
+                t_mid: duration_s / 2.0,
+                sqrt_dt: dt.sqrt(),
+            },
+        }
+    }
+    fn value(&self) -> f64 {
+        match self {
+            UnitProcess::Gm(g) => g.value(),
+            UnitProcess::TwoGm { a, b, wa, wb } => wa * a.value() + wb * b.value(),
+            UnitProcess::RwWhite {
+                walk,
+                white,
+                w,
+                t_mid,
+                ..
+            } => w.sqrt() * white + ((1.0 - w) / t_mid).sqrt() * walk,
+        }
+    }
+    /// Standard deviation of [`Self::value`] at `tr` seconds after the start.
+    fn std(&self, tr: f64) -> f64 {
+        match self {
+            UnitProcess::Gm(_) | UnitProcess::TwoGm { .. } => 1.0,
+            UnitProcess::RwWhite { w, t_mid, .. } => (w + (1.0 - w) * tr / t_mid).sqrt(),
+        }
+    }
+    fn step(&mut self, rng: &mut ChaCha8Rng, rng2: &mut ChaCha8Rng) {
+        match self {
+            UnitProcess::Gm(g) => g.step(rng),
+            UnitProcess::TwoGm { a, b, .. } => {
+                a.step(rng);
+                b.step(rng2);
+            }
+            UnitProcess::RwWhite {
+                walk,
+                white,
+                sqrt_dt,
+                ..
+            } => {
+                let dw: f64 = StandardNormal.sample(rng);
+                *walk += *sqrt_dt * dw;
+                *white = StandardNormal.sample(rng2);
+            }
+        }
     }
 }
 
@@ -102,17 +202,16 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
     let tau = fx.attitude_latency_s.unwrap_or(0.0);
     let tau_p = fx.position_latency_s.unwrap_or(0.0);
     let mut rng = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x0A7E_0000_0000_0003);
-    let mut gm: Vec<GaussMarkov> = (0..6)
+    // The second stream of the richer models: the default model never draws from it.
+    let mut rng2 = ChaCha8Rng::seed_from_u64(sc.seed ^ 0x0A7E_0000_0000_0013);
+    let mut gm: Vec<UnitProcess> = (0..6)
         .map(|i| {
-            GaussMarkov::new(
-                if i < 3 {
-                    e.position_tau_s
-                } else {
-                    e.attitude_tau_s
-                },
-                dt,
-                &mut rng,
-            )
+            let tau = if i < 3 {
+                [e.position_tau_s, e.position_tau2_s]
+            } else {
+                [e.attitude_tau_s, e.attitude_tau2_s]
+            };
+            UnitProcess::new(e, tau, dt, sc.duration_s, &mut rng, &mut rng2)
         })
         .collect();
     let sig = [
@@ -167,17 +266,24 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
         rec.platform_heading_rad =
             (rec.platform_heading_rad + err[5] + fx.heading_bias_deg.unwrap_or(0.0).to_radians())
                 .rem_euclid(std::f64::consts::TAU);
+        if e.zero_rate_fields {
+            (rec.acc_x_mps2, rec.acc_y_mps2, rec.acc_z_mps2) = (0.0, 0.0, 0.0);
+            (rec.rate_x_radps, rec.rate_y_radps, rec.rate_z_radps) = (0.0, 0.0, 0.0);
+        }
         sbet.push(&rec)?;
         if let Some(w) = truth.as_mut() {
             w.push(&t_rec)?;
         }
         if k % m == 0 {
-            let arcmin = |s: f64| s.to_degrees() * 60.0 * f;
+            // Stated = factor x true std (exactly today's numbers at the defaults: both
+            // factors are then 1.0, and a product with 1.0 is exact).
+            let g = gm[0].std(tr) * e.smrmsg_factor;
+            let arcmin = |s: f64| s.to_degrees() * 60.0 * f * g;
             smr.push(&SmrmsgRecord {
                 time_s: t_rec.time_s,
-                north_m: sig[0] * f,
-                east_m: sig[1] * f,
-                down_m: sig[2] * f,
+                north_m: sig[0] * f * g,
+                east_m: sig[1] * f * g,
+                down_m: sig[2] * f * g,
                 vel_north_mps: e.velocity_sigma_mps * f,
                 vel_east_mps: e.velocity_sigma_mps * f,
                 vel_down_mps: e.velocity_sigma_mps * f,
@@ -188,7 +294,7 @@ pub fn write_nav(sc: &Scenario, mut gen: TruthGen, paths: &NavPaths) -> Result<N
             smr_count += 1;
         }
         for g in gm.iter_mut() {
-            g.step(&mut rng);
+            g.step(&mut rng, &mut rng2);
         }
         window.drop_before(k.saturating_sub((tau.max(tau_p).max(0.0) * rate).ceil() as u64 + 2));
     }

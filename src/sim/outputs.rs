@@ -7,19 +7,21 @@
 //! ECEF (m); NaN in all three for a missing return.
 
 use super::dynamics::Frame;
+use super::foreign::Foreign;
 use super::nav::NavCounts;
+use super::references::{
+    facade_rects, ground_squares, patch, GROUND_SQUARE_HALF_M, SURVEY_SIGMA_M,
+};
 use super::route::Route;
 use super::scanner::ScannerModel;
-use super::scenario::{Scenario, SceneKind};
-use super::scene::Shape;
+use super::scenario::Scenario;
 use super::world::World;
 use super::{files, SimSummary};
-use crate::geo::ellipsoid::{ecef_to_geodetic, r_enu_to_e};
+use crate::geo::ellipsoid::ecef_to_geodetic;
 use crate::io::atomic::{write_json, AtomicFile};
-use crate::io::patches::{write_patches, PlanarPatch};
+use crate::io::patches::write_patches;
 use crate::io::points::{write_control_points, ControlPoint};
 use crate::{Error, Result};
-use nalgebra::Vector3;
 use std::path::Path;
 
 /// Magic bytes of the truth sidecar.
@@ -85,9 +87,6 @@ pub fn read_truth_points(path: &Path) -> Result<Vec<[f64; 3]>> {
         .collect())
 }
 
-/// Nominal survey sigma written for control points and patches (m); the truth is exact.
-const SURVEY_SIGMA_M: f64 = 0.001;
-
 /// Writes control points (every landmark) and reference patches (street facades with at least
 /// `output.patch_min_returns` returns, ground squares along the part of the route driven
 /// while scanning).
@@ -97,8 +96,9 @@ pub(crate) fn write_references(
     route: &Route,
     frame: Frame,
     surface_hits: &[u32],
+    foreign: Option<&Foreign>,
     out_dir: &Path,
-) -> Result<()> {
+) -> Result<ForeignCounts> {
     let points: Vec<ControlPoint> = world
         .landmarks
         .iter()
@@ -115,99 +115,68 @@ pub(crate) fn write_references(
         .collect();
     write_control_points(&out_dir.join(files::CONTROL_POINTS), &points)?;
     let mut patches = Vec::new();
-    let curb = if sc.scene.kind == SceneKind::Streets {
-        sc.scene.curb_height_m
-    } else {
-        0.0
-    };
     let scene = &world.scene;
-    for (id, obj) in scene.objects.iter().enumerate() {
-        let Shape::Box {
-            centre,
-            r_l_to_enu,
-            half_m,
-        } = obj.shape
-        else {
-            continue;
-        };
-        if obj.class != super::scene::Class::Building {
-            continue;
-        }
+    let mut counts = ForeignCounts::default();
+    for r in facade_rects(sc, scene) {
+        let id = r.object as usize;
         // Street-facing facades only (local -y, face 2): building ends may hide behind a
         // neighbour a few decimetres away and make poor references.
-        for face in [2usize] {
-            if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
-                continue;
-            }
-            let (axis, sign) = (face / 2, if face % 2 == 1 { 1.0 } else { -1.0 });
-            let normal = r_l_to_enu.column(axis) * sign;
-            let along = r_l_to_enu.column(1 - axis).into_owned();
-            let half_len = half_m[1 - axis];
-            let c = centre + normal * half_m[axis];
-            let ends = [c + along * half_len, c - along * half_len];
-            let low = ends
-                .iter()
-                .map(|e| scene.ground_z(e.x, e.y))
-                .fold(f64::MIN, f64::max)
-                + curb;
-            let top = centre.z + half_m.z;
-            let mid = Vector3::new(c.x, c.y, (low + top) / 2.0);
-            patches.push(patch(
-                format!("FAC{id}_{face}"),
-                &frame,
-                mid,
-                normal.into_owned(),
-                half_len,
-                (top - low) / 2.0,
-            ));
+        let face = 2usize;
+        if surface_hits[id * 8 + face] < sc.output.patch_min_returns {
+            continue;
         }
+        let key = format!("FAC{id}_{face}");
+        if let Some(f) = foreign {
+            counts.add(
+                &key,
+                surface_hits[id * 8 + face],
+                f.hits_of(r.object, surface_hits),
+            );
+        }
+        patches.push(patch(key, &frame, r.centre, r.normal, r.half[0], r.half[1]));
     }
-    let scan_end_s = sc.duration_s - sc.scanner.end_margin_s;
-    let driven = if scan_end_s >= route.lap_s() {
-        route.length_m()
-    } else {
-        route.motion(scan_end_s).s_m
-    };
-    let mut s = 10.0;
-    let up = scene.ground_normal();
-    while s < driven.min(route.length_m()) - 10.0 {
-        let p = route.at(s);
-        let off = sc.vehicle.lane_offset_m;
-        let (x, y) = (p.xy[0] - p.dir[1] * off, p.xy[1] + p.dir[0] * off);
-        let c = Vector3::new(x, y, scene.ground_z(x, y));
-        patches.push(patch(
-            format!("GND{}", patches.len()),
-            &frame,
-            c,
-            up,
-            1.5,
-            1.5,
-        ));
-        s += 20.0;
+    for (i, c) in ground_squares(sc, route, scene).into_iter().enumerate() {
+        let key = format!("GND{}", patches.len());
+        if let Some(f) = foreign {
+            let own = surface_hits[f.square_key(i) as usize];
+            counts.add(&key, own, f.hits_of(f.square_owner(i), surface_hits));
+        }
+        let h = GROUND_SQUARE_HALF_M;
+        patches.push(patch(key, &frame, c, scene.ground_normal(), h, h));
     }
-    write_patches(&out_dir.join(files::PATCHES), &patches)
+    write_patches(&out_dir.join(files::PATCHES), &patches)?;
+    Ok(counts)
 }
 
-fn patch(
-    id: String,
-    frame: &Frame,
-    c: Vector3<f64>,
-    n: Vector3<f64>,
-    hl: f64,
-    hh: f64,
-) -> PlanarPatch {
-    let g = ecef_to_geodetic(&frame.to_ecef(&c));
-    let n_local = r_enu_to_e(g.lat_rad, g.lon_rad).transpose() * (frame.r_enu_to_e * n);
-    let n_local = n_local.normalize();
-    PlanarPatch {
-        id,
-        lat_rad: g.lat_rad,
-        lon_rad: g.lon_rad,
-        h_m: g.h_m,
-        normal_enu: [n_local.x, n_local.y, n_local.z],
-        half_length_m: hl,
-        half_height_m: hh,
-        sigma_m: Some(SURVEY_SIGMA_M),
+/// `truth.json` `foreign`: the foreign things and their returns.
+#[derive(Debug, Clone, serde::Serialize)]
+pub(crate) struct ForeignSummary {
+    /// Things placed.
+    pub things: usize,
+    /// Mixed returns at their edges (all of them, on listed patches or not).
+    pub mixed_returns: u64,
+    /// Returns on the listed patches.
+    #[serde(flatten)]
+    pub counts: ForeignCounts,
+}
+
+/// Foreign returns on the listed reference patches (`truth.json` `foreign`).
+#[derive(Debug, Default, Clone, serde::Serialize)]
+pub(crate) struct ForeignCounts {
+    /// Returns on the listed patches: their own surface's plus the foreign ones.
+    pub patch_returns: u64,
+    /// Returns from foreign things on them.
+    pub foreign_returns: u64,
+    /// Per patch: id, returns, foreign returns.
+    pub by_patch: Vec<(String, u64, u64)>,
+}
+
+impl ForeignCounts {
+    fn add(&mut self, id: &str, own: u32, foreign: u64) {
+        self.patch_returns += own as u64 + foreign;
+        self.foreign_returns += foreign;
+        self.by_patch
+            .push((id.to_string(), own as u64 + foreign, foreign));
     }
 }
 
@@ -220,6 +189,7 @@ pub(crate) fn write_truth_json(
     route: &Route,
     nav: &NavCounts,
     summary: &SimSummary,
+    foreign: Option<&ForeignSummary>,
     out_dir: &Path,
 ) -> Result<()> {
     let sensor = |s: &crate::georef::Sensor| {
@@ -234,7 +204,7 @@ pub(crate) fn write_truth_json(
     let mirror = &m.clock.mirror;
     let fx = &sc.effects;
     let e = &sc.nav_errors;
-    let doc = serde_json::json!({
+    let mut doc = serde_json::json!({
         "format": "kinescan-sim-truth/1",
         "scenario": sc.name,
         "seed": sc.seed,
@@ -295,5 +265,28 @@ pub(crate) fn write_truth_json(
         },
         "truth_points_layout": "64-byte header (magic KSTRUTH1, u32 version 1, u32 record bytes 24, u32 flags, u32 reserved, u64 count, 32 reserved); per return in profiles.bin order: f64 x, y, z ECEF (m), NaN when missing",
     });
+    if let Some(f) = foreign {
+        let share = f.counts.foreign_returns as f64 / f.counts.patch_returns.max(1) as f64;
+        doc["foreign"] = serde_json::json!({
+            "foreign_share": sc.scene.foreign_share,
+            "measured_share": share,
+            "summary": f,
+        });
+    }
+    if !e.is_plain() {
+        // Written only off the defaults, so that a default survey's truth.json is today's.
+        let extra = serde_json::json!({
+            "model": e.model,
+            "white_share": e.white_share,
+            "position_tau2_s": e.position_tau2_s,
+            "attitude_tau2_s": e.attitude_tau2_s,
+            "second_share": e.second_share,
+            "smrmsg_factor": e.smrmsg_factor,
+            "zero_rate_fields": e.zero_rate_fields,
+        });
+        if let (Some(n), Some(x)) = (doc["nav_errors"].as_object_mut(), extra.as_object()) {
+            n.extend(x.clone());
+        }
+    }
     write_json(&out_dir.join(files::TRUTH_JSON), &doc)
 }

@@ -13,6 +13,7 @@
 //! the true distance to the surface, `i` the incidence angle.
 
 use super::dynamics::Frame;
+use super::foreign::Foreign;
 use super::scenario::Scenario;
 use super::scene::{Scene, GROUND};
 use crate::georef::{beam_e, Sensor};
@@ -220,12 +221,15 @@ pub struct ProfileOut {
     pub surfaces: Vec<u32>,
     /// Returns with a range.
     pub valid: u32,
+    /// Mixed returns at the edges of foreign things.
+    pub mixed: u32,
 }
 
 /// Generates profile `n`.
 pub fn profile(
     m: &ScannerModel,
     scene: &Scene,
+    foreign: Option<&Foreign>,
     frame: &Frame,
     window: &TruthWindow,
     n: u32,
@@ -270,13 +274,21 @@ pub fn profile(
             let o = r_e_enu * (o_e - frame.origin_e);
             let d = r_e_enu * d_e;
             let key = ((n as u64) << 24) ^ j as u64 ^ m.seed.rotate_left(17);
-            if let Some(h) = scene.cast(&o, &d, m.min_range_m, m.max_range_m, key) {
+            if let Some(mut h) = scene.cast(&o, &d, m.min_range_m, m.max_range_m, key) {
+                if let Some(t) = foreign.and_then(|f| f.mixed_range(scene, &h, &o, &d)) {
+                    h.t_m = t;
+                    out.mixed += 1;
+                }
                 let cos_incidence = h.normal.dot(&d).abs();
                 let rho = h.t_m * m.range_scale - m.truth.range_zero_m
                     + m.uncatalogued_range_error_m(h.t_m, cos_incidence)
                     + range_noise;
                 if rho > 0.0 {
+                    let x = o_e + d_e * h.t_m;
                     let refl = if h.object == GROUND {
+                        if let Some(k) = foreign.and_then(|f| f.square_of(&(o + d * h.t_m), &x)) {
+                            out.surfaces.push(k);
+                        }
                         scene.ground_reflectance
                     } else {
                         out.surfaces.push(h.object * 8 + h.face as u32);
@@ -286,7 +298,6 @@ pub fn profile(
                     let level = (refl * cos_incidence * fall).min(1.0);
                     rec.range_m = rho;
                     rec.intensity = (level * 65535.0).round() as u16;
-                    let x = o_e + d_e * h.t_m;
                     truth = [x.x, x.y, x.z];
                     out.valid += 1;
                 }

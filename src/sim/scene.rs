@@ -26,6 +26,8 @@ pub enum Class {
     Tree,
     /// Parked car.
     Car,
+    /// A foreign thing on a reference patch (`scene.foreign_share`, `sim::foreign`).
+    Foreign,
 }
 
 /// Geometry of one object.
@@ -433,7 +435,7 @@ fn intersect(s: &Shape, o: &Vector3<f64>, d: &Vector3<f64>, t_min: f64, t_max: f
 
 /// Uniform [0, 1) from a ray key and an object id (splitmix64 finaliser).
 #[inline]
-fn unit_hash(key: u64, id: u32) -> f64 {
+pub(crate) fn unit_hash(key: u64, id: u32) -> f64 {
     let mut z = key ^ (id as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
     z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
     z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);

@@ -102,7 +102,7 @@ impl Builder<'_> {
         let r = &self.cfg.reflectance;
         let (reflectance, porosity) = match class {
             Class::Sidewalk => (r[0], 0.0),
-            Class::Building | Class::Car => (r[1], 0.0),
+            Class::Building | Class::Car | Class::Foreign => (r[1], 0.0),
             Class::Pole => (r[2], 0.0),
             Class::Sphere => (r[3], 0.0),
             Class::SyncTarget => (self.cfg.sync_reflectance, 0.0),

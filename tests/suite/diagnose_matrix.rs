@@ -415,12 +415,7 @@ fn diagnosis_matrix() {
     let default_models: Vec<&str> = if full {
         model_labels.clone()
     } else {
-        vec![
-            "gm 10/300",
-            "two gm",
-            "smrmsg x1.5",
-            "zero rates + vibration",
-        ]
+        vec!["two gm", "smrmsg x1.5", "zero rates + vibration"]
     };
     let models = selected("KINESCAN_MATRIX_MODELS", &model_labels, &default_models);
     let foreign = selected("KINESCAN_MATRIX_FOREIGN", &["off", "on"], &["off", "on"]);
@@ -429,14 +424,15 @@ fn diagnosis_matrix() {
         &["lap", "survey"],
         if full { &["lap", "survey"] } else { &["lap"] },
     );
-    let sizes: Vec<f64> = selected(
-        "KINESCAN_MATRIX_SIZES",
-        &["2", "1", "0.4"],
-        &["2", "1", "0.4"],
-    )
-    .iter()
-    .map(|s| s.parse().unwrap())
-    .collect();
+    let default_sizes: &[&str] = if full {
+        &["2", "1", "0.4"]
+    } else {
+        &["2", "0.4"]
+    };
+    let sizes: Vec<f64> = selected("KINESCAN_MATRIX_SIZES", &["2", "1", "0.4"], default_sizes)
+        .iter()
+        .map(|s| s.parse().unwrap())
+        .collect();
     let all_cases: Vec<Case> = catalogue_cases()
         .into_iter()
         .chain(other_cases())
@@ -446,13 +442,7 @@ fn diagnosis_matrix() {
     let default_cases: Vec<&str> = if full {
         labels.clone()
     } else {
-        vec![
-            "none",
-            "boresight_x_deg",
-            "attitude_latency_s",
-            "range_zero_m",
-            "out: range_cyclic",
-        ]
+        vec!["none", "boresight_x_deg", "out: range_cyclic"]
     };
     let picked = selected("KINESCAN_MATRIX_EFFECTS", &labels, &default_cases);
     let cases: Vec<Case> = all_cases

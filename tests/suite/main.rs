@@ -46,6 +46,8 @@ mod safety_plausible;
 mod safety_publish;
 mod safety_sets;
 mod sim_effects;
+mod sim_foreign;
+mod sim_nav_family;
 mod sim_references;
 mod sim_stats;
 mod sim_tie;

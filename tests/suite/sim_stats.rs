@@ -9,8 +9,6 @@
 //! sqrt(2 tau / T) = 2.2%: the 5% and 10% bounds sit at 4.5 standard errors.
 
 use crate::sim_support;
-use kinescan::geo::ellipsoid::{meridian_radius_m, prime_vertical_radius_m};
-use kinescan::geo::rotations::wrap_pi;
 use kinescan::io::sbet::SbetFile;
 use kinescan::io::smrmsg::{SmrmsgFile, RAD_PER_ARCMIN};
 use sim_support::*;
@@ -18,15 +16,6 @@ use sim_support::*;
 const TAU_S: f64 = 0.25;
 const HALF_S: f64 = 1000.0;
 const FACTOR: f64 = 4.0;
-
-/// SMRMSG column of error axis `i` (north, east, down, roll, pitch, heading).
-fn col(i: usize) -> usize {
-    if i < 3 {
-        i + 1
-    } else {
-        i + 4
-    }
-}
 
 #[test]
 fn gauss_markov_errors_have_their_stated_statistics() {
@@ -52,10 +41,9 @@ fn gauss_markov_errors_have_their_stated_statistics() {
     ];
     let dir = tempfile::tempdir().unwrap();
     run(&sc, dir.path(), 2);
-    let nav = SbetFile::open(&dir.path().join("trajectory.sbet")).unwrap();
     let truth = SbetFile::open(&dir.path().join("truth.sbet")).unwrap();
     let smr = SmrmsgFile::open(&dir.path().join("trajectory.smrmsg")).unwrap();
-    assert_eq!(nav.len(), truth.len());
+    let errors = nav_errors(dir.path());
     let t_start = truth.time_s(0);
     let dt = truth.time_s(1) - t_start;
     // Errors normalised by the SMRMSG sigma (linear between records): unit GM processes.
@@ -63,23 +51,14 @@ fn gauss_markov_errors_have_their_stated_statistics() {
     let mut raw = vec![[Vec::new(), Vec::new()]; 6];
     let every = (smr.time_s(1) - smr.time_s(0)) / dt;
     let every = every.round() as usize;
-    for k in 0..nav.len() {
-        let (a, b) = (nav.record(k), truth.record(k));
-        let h = b.alt_m;
-        let err = [
-            (a.lat_rad - b.lat_rad) * (meridian_radius_m(b.lat_rad) + h),
-            (a.lon_rad - b.lon_rad) * (prime_vertical_radius_m(a.lat_rad) + h) * a.lat_rad.cos(),
-            -(a.alt_m - b.alt_m),
-            a.roll_rad - b.roll_rad,
-            a.pitch_rad - b.pitch_rad,
-            wrap_pi(a.platform_heading_rad - b.platform_heading_rad),
-        ];
+    for (k, err) in errors.iter().enumerate() {
+        let b = truth.record(k);
         let (j, w) = (k / every, (k % every) as f64 / every as f64);
         let s0 = smr.record(j).to_array();
         let s1 = smr.record((j + 1).min(smr.len() - 1)).to_array();
         for i in 0..6 {
             let unit = if i < 3 { 1.0 } else { RAD_PER_ARCMIN };
-            let s = (s0[col(i)] + w * (s1[col(i)] - s0[col(i)])) * unit;
+            let s = (s0[smrmsg_col(i)] + w * (s1[smrmsg_col(i)] - s0[smrmsg_col(i)])) * unit;
             series[i].push(err[i] / s);
             let inside = b.time_s - t_start >= HALF_S;
             raw[i][inside as usize].push(err[i]);
@@ -90,7 +69,7 @@ fn gauss_markov_errors_have_their_stated_statistics() {
         let s = smr.record(j).to_array();
         for i in 0..6 {
             let unit = if i < 3 { 1.0 } else { RAD_PER_ARCMIN };
-            let got = s[col(i)] * unit;
+            let got = s[smrmsg_col(i)] * unit;
             assert!(
                 (got - f * sigma[i]).abs() < 1e-12 * sigma[i],
                 "smrmsg {j} axis {i}: {got} vs {}",

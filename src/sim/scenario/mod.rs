@@ -14,7 +14,7 @@ mod sensors;
 pub use raw::RawCfg;
 pub use route::{RouteCfg, StopCfg, VehicleCfg};
 pub use scene::{SceneCfg, SceneKind};
-pub use sensors::{NavErrorCfg, ScannerCfg};
+pub use sensors::{NavErrorCfg, NavErrorModel, ScannerCfg};
 
 use super::checker::Checker;
 use super::effects::Effects;

@@ -66,6 +66,10 @@ pub struct VehicleCfg {
     pub body_time_constant_s: f64,
     /// Road vibration amplitude at top speed: roll, pitch (deg).
     pub vibration_deg: [f64; 2],
+    /// When set, roll and pitch vibrate as one sinusoid at this frequency (Hz) of amplitude
+    /// `vibration_deg` at top speed, instead of three seeded sinusoids.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vibration_hz: Option<f64>,
     /// Road vibration vertical amplitude at top speed (m).
     pub vibration_vertical_m: f64,
     /// True trajectory (and SBET) sampling rate (Hz), >= 200.
@@ -81,6 +85,7 @@ impl Default for VehicleCfg {
             pitch_per_longitudinal_acc_deg: 0.4,
             body_time_constant_s: 0.3,
             vibration_deg: [0.02, 0.02],
+            vibration_hz: None,
             vibration_vertical_m: 0.003,
             nav_rate_hz: 200.0,
         }
@@ -139,6 +144,9 @@ impl VehicleCfg {
         );
         for (i, v) in self.vibration_deg.iter().enumerate() {
             c.range(&format!("vehicle.vibration_deg[{i}]"), *v, 0.0, 2.0);
+        }
+        if let Some(f) = self.vibration_hz {
+            c.range("vehicle.vibration_hz", f, 0.5, 20.0);
         }
         c.range(
             "vehicle.vibration_vertical_m",

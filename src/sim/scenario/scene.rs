@@ -66,6 +66,9 @@ pub struct SceneCfg {
     /// When > 0, an unlisted retro-reflective plate (a sign, not a sync target) stands this
     /// far along the street beyond the first sync target (m).
     pub decoy_offset_m: f64,
+    /// Share of each reference patch's returns that come from foreign things (objects in
+    /// front of facades, stones on the ground squares, mixed returns at their edges), 0..0.05.
+    pub foreign_share: f64,
 }
 
 impl Default for SceneCfg {
@@ -95,6 +98,7 @@ impl Default for SceneCfg {
             sync_reflectance: 50.0,
             sync_target_yaw_deg: 0.0,
             decoy_offset_m: 0.0,
+            foreign_share: 0.0,
         }
     }
 }
@@ -149,5 +153,6 @@ impl SceneCfg {
             80.0,
         );
         c.range("scene.decoy_offset_m", self.decoy_offset_m, 0.0, 1000.0);
+        c.range("scene.foreign_share", self.foreign_share, 0.0, 0.05);
     }
 }

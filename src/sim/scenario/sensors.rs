@@ -67,10 +67,27 @@ impl Default for ScannerCfg {
     }
 }
 
-/// Random navigation errors: first-order Gauss-Markov processes per axis.
+/// The random process of every navigation error component (docs/simulator.md, "Navigation
+/// errors").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NavErrorModel {
+    /// One first-order Gauss-Markov process (`position_tau_s`, `attitude_tau_s`).
+    #[default]
+    GaussMarkov,
+    /// A random walk started at zero plus white noise (`white_share` of the variance white).
+    RandomWalkWhite,
+    /// The sum of two independent Gauss-Markov processes (`*_tau_s` and `*_tau2_s`,
+    /// `second_share` of the variance in the second).
+    TwoGaussMarkov,
+}
+
+/// Random navigation errors: a process per axis (first-order Gauss-Markov by default).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct NavErrorCfg {
+    /// Process of every component.
+    pub model: NavErrorModel,
     /// Position error sigma north, east, down (m).
     pub position_sigma_m: [f64; 3],
     /// Position error correlation time (s).
@@ -87,11 +104,24 @@ pub struct NavErrorCfg {
     pub velocity_sigma_mps: f64,
     /// SMRMSG record rate (Hz); must divide the nav rate.
     pub smrmsg_rate_hz: f64,
+    /// `random_walk_white`: share of the variance that is white noise (0..1).
+    pub white_share: f64,
+    /// `two_gauss_markov`: correlation time of the second position process (s).
+    pub position_tau2_s: f64,
+    /// `two_gauss_markov`: correlation time of the second attitude process (s).
+    pub attitude_tau2_s: f64,
+    /// `two_gauss_markov`: share of the variance in the second process (0..1).
+    pub second_share: f64,
+    /// The SMRMSG states this factor times the true sigma (the errors are unchanged).
+    pub smrmsg_factor: f64,
+    /// Write the SBET's body acceleration and angular-rate fields as zero.
+    pub zero_rate_fields: bool,
 }
 
 impl Default for NavErrorCfg {
     fn default() -> Self {
         NavErrorCfg {
+            model: NavErrorModel::GaussMarkov,
             position_sigma_m: [0.0; 3],
             position_tau_s: 60.0,
             attitude_sigma_deg: [0.0; 3],
@@ -100,7 +130,28 @@ impl Default for NavErrorCfg {
             outage_sigma_factor: 5.0,
             velocity_sigma_mps: 0.01,
             smrmsg_rate_hz: 10.0,
+            white_share: 0.3,
+            position_tau2_s: 600.0,
+            attitude_tau2_s: 300.0,
+            second_share: 0.5,
+            smrmsg_factor: 1.0,
+            zero_rate_fields: false,
         }
+    }
+}
+
+impl NavErrorCfg {
+    /// True when every key added with the error family (model, shares, second correlation
+    /// times, SMRMSG factor, zero rate fields) is at its default: the survey is today's.
+    pub fn is_plain(&self) -> bool {
+        let d = NavErrorCfg::default();
+        self.model == d.model
+            && self.white_share == d.white_share
+            && self.position_tau2_s == d.position_tau2_s
+            && self.attitude_tau2_s == d.attitude_tau2_s
+            && self.second_share == d.second_share
+            && self.smrmsg_factor == d.smrmsg_factor
+            && self.zero_rate_fields == d.zero_rate_fields
     }
 }
 
@@ -173,6 +224,11 @@ impl NavErrorCfg {
         }
         c.pos("nav_errors.position_tau_s", self.position_tau_s);
         c.pos("nav_errors.attitude_tau_s", self.attitude_tau_s);
+        c.range("nav_errors.white_share", self.white_share, 0.0, 1.0);
+        c.pos("nav_errors.position_tau2_s", self.position_tau2_s);
+        c.pos("nav_errors.attitude_tau2_s", self.attitude_tau2_s);
+        c.range("nav_errors.second_share", self.second_share, 0.0, 1.0);
+        c.range("nav_errors.smrmsg_factor", self.smrmsg_factor, 0.3, 3.0);
         for (i, o) in self.outages_s.iter().enumerate() {
             c.test(
                 &format!("nav_errors.outages_s[{i}]"),

@@ -161,3 +161,39 @@ pub fn georef_pairs_with_latency(dir: &Path, tau_s: f64) -> Vec<Pair> {
     }
     out
 }
+
+/// SMRMSG column of error axis `i` (north, east, down, roll, pitch, heading).
+pub fn smrmsg_col(i: usize) -> usize {
+    if i < 3 {
+        i + 1
+    } else {
+        i + 4
+    }
+}
+
+/// The navigation errors the simulation in `dir` injected, per SBET record: `trajectory.sbet`
+/// minus `truth.sbet` as north, east, down (m) and roll, pitch, heading (rad).
+pub fn nav_errors(dir: &Path) -> Vec<[f64; 6]> {
+    use kinescan::geo::ellipsoid::{meridian_radius_m, prime_vertical_radius_m};
+    use kinescan::geo::rotations::wrap_pi;
+    use kinescan::io::sbet::SbetFile;
+    let nav = SbetFile::open(&dir.join("trajectory.sbet")).unwrap();
+    let truth = SbetFile::open(&dir.join("truth.sbet")).unwrap();
+    assert_eq!(nav.len(), truth.len());
+    (0..nav.len())
+        .map(|k| {
+            let (a, b) = (nav.record(k), truth.record(k));
+            let h = b.alt_m;
+            [
+                (a.lat_rad - b.lat_rad) * (meridian_radius_m(b.lat_rad) + h),
+                (a.lon_rad - b.lon_rad)
+                    * (prime_vertical_radius_m(a.lat_rad) + h)
+                    * a.lat_rad.cos(),
+                -(a.alt_m - b.alt_m),
+                a.roll_rad - b.roll_rad,
+                a.pitch_rad - b.pitch_rad,
+                wrap_pi(a.platform_heading_rad - b.platform_heading_rad),
+            ]
+        })
+        .collect()
+}
