@@ -247,6 +247,7 @@ struct ScanResult {
 }
 
 /// Generates and writes every profile, block by block.
+#[allow(clippy::too_many_arguments)]
 fn scan(
     sc: &Scenario,
     model: &ScannerModel,

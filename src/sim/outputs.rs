@@ -182,6 +182,7 @@ impl ForeignCounts {
 
 /// Writes `truth.json`: configured sensor (what to give the pipeline), true sensor, clock,
 /// injected effects, navigation error statistics, the sync targets' faces, files and counts.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn write_truth_json(
     sc: &Scenario,
     world: &World,

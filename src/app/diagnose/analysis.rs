@@ -128,7 +128,8 @@ pub struct Reobserved {
 /// no share to close, and an after-gap at or below 1 closes all of it.
 pub fn closure_words(before_chi2_per_dof: f64, after_chi2_per_dof: f64, n: usize) -> String {
     let excess = before_chi2_per_dof - 1.0;
-    if !(excess > 3.0 * (2.0 / n.max(1) as f64).sqrt()) {
+    let significant = excess > 3.0 * (2.0 / n.max(1) as f64).sqrt();
+    if !significant {
         return "no significant held-out excess to close".to_string();
     }
     let share = (before_chi2_per_dof - after_chi2_per_dof) / excess;
