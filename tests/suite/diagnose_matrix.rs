@@ -304,6 +304,17 @@ fn run_cell(
     out
 }
 
+/// Acceptance lines the diagnosis does not meet yet (issue "The diagnosis on surveys it was
+/// not tuned to" is open; measured in docs/diagnosis.md, *The matrix*): printed as NOT MET
+/// with their numbers on every run, not asserted, so that CI guards every line that is met.
+/// A line leaves this list when it is met; one that is met while listed is printed as such.
+const NOT_YET_MET: [&str; 4] = [
+    "named at 2 D",
+    "within 2 sigma at 2 D",
+    "after-gap honest at 2 D",
+    "named at D",
+];
+
 /// A rate `k / n` as text.
 fn rate(k: usize, n: usize) -> String {
     if n == 0 {

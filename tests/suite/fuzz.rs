@@ -257,8 +257,7 @@ fn make_samples() -> Samples {
         12,
     )];
     let by_parser = vec![
-        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, csd, imu,
-        gnss,
+        sbet, smrmsg, profiles, csv, points, patches, pipelines, scenarios, days, csd, imu, gnss,
     ];
     Samples { dir, by_parser }
 }
