@@ -6,9 +6,11 @@
 //! simulator (`truth.json` `foreign`) and here from the truth points alone (inside a patch's
 //! rectangle, off its plane by more than 1 mm and at most 1.05 m): the two counts agree.
 //!
-//! Tolerance: at 2e-3 the base survey's patches take a few hundred foreign returns from ~60
-//! things per 100 m of street; the scatter of the measured share over seeds on the larger
-//! surveys (docs/simulator.md) stays within the factor 1.5 asked of the simulator.
+//! Tolerance: the factor 1.5 asked of the simulator. At 2e-3 the base survey's 15,761 patch
+//! returns take about 44 foreign ones (measured: 44, ratio 1.40), so the factor there is
+//! about 2 Poisson sds and the case checks mostly placement and the count; at 1e-2 (207,
+//! ratio 1.31) it is about 4 sds. Both ratios sit above 1: the measured share runs high on
+//! this small survey (docs/simulator.md gives 0.59-2.35 on single seeds of larger ones).
 
 use crate::sim_support;
 use kinescan::io::patches::read_patches;
