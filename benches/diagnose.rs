@@ -10,23 +10,10 @@ use kinescan::app::diagnose::{self, Request};
 use kinescan::pipeline::config;
 use kinescan::sim::{simulate_scenario, Scenario, SimOptions};
 use std::time::Instant;
-
-/// User + system CPU seconds of this process (from /proc/self/stat, 100 ticks/s).
-fn cpu_s() -> f64 {
-    let s = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    let f: Vec<&str> = s
-        .rsplit(')')
-        .next()
-        .unwrap_or("")
-        .split_whitespace()
-        .collect();
-    let tick = |i: usize| {
-        f.get(i)
-            .and_then(|v| v.parse::<f64>().ok())
-            .unwrap_or(f64::NAN)
-    };
-    (tick(11) + tick(12)) / 100.0
-}
+#[path = "support/proc_stats.rs"]
+#[allow(dead_code)] // peak_rss_mib is for the other benches
+mod proc_stats;
+use proc_stats::cpu_s;
 
 fn main() {
     let reps: usize = std::env::var("KINESCAN_BENCH_REPS")
