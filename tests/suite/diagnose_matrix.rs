@@ -308,7 +308,10 @@ fn run_cell(
 /// not tuned to" is open; measured in docs/diagnosis.md, *The matrix*): printed as NOT MET
 /// with their numbers on every run, not asserted, so that CI guards every line that is met.
 /// A line leaves this list when it is met; one that is met while listed is printed as such.
-const NOT_YET_MET: [&str; 4] = [
+const NOT_YET_MET: [&str; 5] = [
+    // 96% of 24 and 94% of 18 in the two runs measured: one seed of "zero rates + vibration"
+    // with foreign returns is `unexplained` without any effect (held-out chi2/dof 1.063).
+    "none",
     "named at 2 D",
     "within 2 sigma at 2 D",
     "after-gap honest at 2 D",
