@@ -4,7 +4,7 @@
 //! acceptance survey (`pipelines/scenario_acceptance.toml`); prints the table of rates and
 //! asserts the thresholds of the acceptance.
 //!
-//! About 8 s per seed and case with the navigation model learned (2 idle cores), 19 cases x 5
+//! About 14 s per seed and case with the navigation model learned (2 cores), 19 cases x 5
 //! seeds (CI runs seeds 1-3; docs/diagnosis.md): a quarter of an hour, so it is
 //! `#[ignore]`d in `cargo test` and run by CI (`.ci/run`) as
 //! `KINESCAN_ACCEPT_SEEDS=10 cargo test --test suite -- --ignored diagnosis_acceptance --nocapture`.
