@@ -72,7 +72,8 @@ pub fn confirm(
             .iter()
             .zip(&refit.sigma)
             .map(|(x, s)| (x / s).abs())
-            .fold(0.0, f64::max);
+            // A non-finite move is never "settled" (f64::max would drop a NaN).
+            .fold(0.0, |m: f64, v| if v.is_nan() || v > m { v } else { m });
         if last_move_sigma < SETTLED_SIGMA || rounds == MAX_ROUNDS {
             let held_out = references_of(&set, proposal.held_out_ids);
             let after = gap(&set, &held_out, None)?;
