@@ -498,7 +498,7 @@ fn a_diagnosis_output_that_is_an_input_is_refused() {
 /// range.
 #[test]
 fn signatures_equal_finite_differences_through_the_georeferencing() {
-    use kinescan::app::diagnose::reprocess::set_lines;
+    use kinescan::app::diagnose::confirm::reprocess::set_lines;
     use std::collections::HashMap;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
@@ -690,7 +690,8 @@ fn control_points_alone_estimate_an_injected_lever_arm() {
         let cp: Vec<usize> = (0..ids.len())
             .filter(|&r| ids[r].starts_with("SYNC"))
             .collect();
-        let f = kinescan::app::diagnose::fit::fit(&o.set, &cp, &[Effect::LeverArmX]).unwrap();
+        let f =
+            kinescan::app::diagnose::model::fit::fit(&o.set, &cp, &[Effect::LeverArmX]).unwrap();
         let z = (f.estimate[0] - 0.05) / f.sigma[0];
         println!(
             "seed {seed}: {} targets, {} visits: lever_arm_x_m {:.4} +- {:.4} (z {z:.2})",
@@ -728,7 +729,7 @@ fn ground_patches_alone_name_no_effect_on_a_survey_without_one() {
     let refs = References::read(&d.join("ground.csv"), None).unwrap();
     let set = observe(&p, &refs, &DiagnoseConfig::default()).unwrap().set;
     let every: Vec<usize> = (0..set.reference_ids.len()).collect();
-    let f = kinescan::app::diagnose::fit::fit(&set, &every, &[Effect::RangeScale]).unwrap();
+    let f = kinescan::app::diagnose::model::fit::fit(&set, &every, &[Effect::RangeScale]).unwrap();
     println!(
         "range_scale_ppm on the ground squares: {:.0} +- {:.0}",
         f.estimate[0], f.sigma[0]

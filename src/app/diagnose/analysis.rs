@@ -3,9 +3,9 @@
 //! verdict, the model-free correction along the leading covariate (docs/diagnosis.md,
 //! "Statistics").
 
-use super::fit::{split, Split};
 use super::locate::{locate, located_in, model_free, Correction, CovariateTest};
-use super::metrics::{gap, Gap};
+use super::model::fit::{split, Split};
+use super::model::metrics::{gap, Gap};
 use super::model::{Covariate, ObservationSet};
 use super::select::{select, Selection, Verdict};
 use crate::Result;
@@ -58,7 +58,6 @@ pub struct Analysis {
 
 /// Runs the statistics on `set`.
 pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
-    set.validate()?;
     let split = split(set, settings.seed)?;
     let before = gap(set, &split.held_out, None)?;
     let selection = select(set, &split, settings.alpha)?;
@@ -255,9 +254,9 @@ pub fn reason(
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::synthetic::{draw, fill_residuals, Scenario};
-    use super::super::model::Effect;
     use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, fill_residuals, Scenario};
+    use crate::app::diagnose::model::Effect;
 
     #[test]
     fn analysis_names_locates_and_explains() {

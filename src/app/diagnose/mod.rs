@@ -1,28 +1,38 @@
 //! `kinescan diagnose`: where a survey departs from its model, which catalogue effect causes
 //! it, and how far the gap shrinks once that effect is added (docs/diagnosis.md).
 //!
-//! Data flow: [`observe`] (returns on reference patches -> observations) -> the statistics
-//! (split by reference, observability, selection, location, model-free correction) ->
-//! [`reprocess`] (the chosen effects added to the pipeline, the held-out references observed
-//! again) -> [`report`] and [`plots`] (diagnosis.json, summary.md, PNGs, corrected.toml).
+//! The stages, in the order the data flows through them (docs/diagnosis.md, "Method"):
+//! [`observe`] (returns on reference patches -> observations) -> [`model`] (the observation
+//! set, validated once) -> [`nuisance`] (foreign returns set aside, the navigation error model
+//! learned) -> [`select`] (which effect) -> [`locate`] (where the gap lies) -> [`confirm`] (the
+//! explanation applied and the survey observed again) -> [`report`]. [`run`] calls them in
+//! that order. `model` holds what every stage shares (the observation types, the residual
+//! model's GLS algebra, the tests' tail probabilities); otherwise a stage imports only stages
+//! before it.
 
-pub mod analysis;
-pub mod confirm;
-pub mod continuous;
-mod design;
-pub mod fit;
-pub mod locate;
-pub mod metrics;
-pub mod model;
-pub mod nuisance;
-pub mod observability;
+/// 1. Returns on the references -> observations.
 pub mod observe;
-pub mod plots;
-pub mod power;
-pub mod report;
-pub mod reprocess;
-pub mod screen;
+
+/// 2. The observation set, validated once, with its residual model, GLS algebra and tests.
+pub mod model;
+
+/// 3. What the null model needs, learned from the survey: foreign returns, navigation errors.
+pub mod nuisance;
+
+/// 4. Which catalogue effect explains the gap: observability, candidates, verdict, power.
 pub mod select;
+
+/// 5. Where the gap lies: covariate tests and the model-free correction.
+pub mod locate;
+
+/// 4 and 5 on one observation set in one call.
+pub mod analysis;
+
+/// 6. The explanation judged on the survey observed again with it.
+pub mod confirm;
+
+/// 7. diagnosis.json, summary.md, PNGs, corrected.toml.
+pub mod report;
 
 use crate::io::publish::publish_folder;
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
@@ -93,7 +103,7 @@ struct Statistics {
 /// What the statistics learned from the survey before testing it: the returns set aside as
 /// foreign, and the navigation error model.
 struct Learned {
-    screening: screen::Screening,
+    screening: nuisance::screen::Screening,
     nuisance: nuisance::Nuisance,
 }
 
@@ -104,8 +114,8 @@ impl Learned {
         set: &model::ObservationSet,
         cfg: &DiagnoseConfig,
     ) -> Result<(Self, model::ObservationSet)> {
-        let (screened, screening) = screen::screen(set, cfg.max_foreign_share);
-        let split = fit::split(&screened, cfg.seed)?;
+        let (screened, screening) = nuisance::screen::screen(set, cfg.max_foreign_share);
+        let split = model::fit::split(&screened, cfg.seed)?;
         let held = nuisance::Held {
             position_tau_s: cfg.nav_position_tau_s,
             attitude_tau_s: cfg.nav_attitude_tau_s,
@@ -128,7 +138,7 @@ impl Learned {
 
     /// The same screening and navigation model on a survey observed again.
     fn apply(&self, set: &model::ObservationSet) -> model::ObservationSet {
-        let (screened, _) = screen::screen(set, self.screening.max_foreign_share);
+        let (screened, _) = nuisance::screen::screen(set, self.screening.max_foreign_share);
         nuisance::apply(&screened, &self.nuisance)
     }
 }
@@ -296,11 +306,11 @@ fn write_outputs(
     let (set_lines, after, after_normalised) = match (confirmation, &stats.model_free) {
         (Some(c), _) => {
             let z = locate::normalised_residuals(&c.set, None);
-            reprocess::write_pipeline(
+            confirm::reprocess::write_pipeline(
                 &c.corrected.config,
                 &p.path,
                 &c.set_lines,
-                &dir.join(reprocess::CORRECTED_PIPELINE),
+                &dir.join(confirm::reprocess::CORRECTED_PIPELINE),
             )?;
             (
                 c.set_lines.clone(),
@@ -325,13 +335,17 @@ fn write_outputs(
             .zip(&stats.normalised)
             .map(|(o, &z)| (c.value(&o.covariates), z))
             .collect();
-        let plot = plots::covariate_plot(&t.covariate, &points, &t.bins);
-        let file = plots::covariate_file(&t.covariate);
-        plot_files.push(plots::write_png(&plot, dir, &file)?);
+        let plot = report::plots::covariate_plot(&t.covariate, &points, &t.bins);
+        let file = report::plots::covariate_file(&t.covariate);
+        plot_files.push(report::plots::write_png(&plot, dir, &file)?);
     }
     if !after_normalised.is_empty() {
-        let plot = plots::before_after_plot(&before_normalised, &after_normalised);
-        plot_files.push(plots::write_png(&plot, dir, plots::BEFORE_AFTER)?);
+        let plot = report::plots::before_after_plot(&before_normalised, &after_normalised);
+        plot_files.push(report::plots::write_png(
+            &plot,
+            dir,
+            report::plots::BEFORE_AFTER,
+        )?);
     }
     let d = report::Diagnosis {
         verdict: stats.verdict,
@@ -410,13 +424,13 @@ fn output_names() -> Vec<String> {
     let fixed = [
         report::DIAGNOSIS_JSON,
         report::SUMMARY_MD,
-        reprocess::CORRECTED_PIPELINE,
-        reprocess::CORRECTED_LAS,
-        plots::BEFORE_AFTER,
+        confirm::reprocess::CORRECTED_PIPELINE,
+        confirm::reprocess::CORRECTED_LAS,
+        report::plots::BEFORE_AFTER,
     ];
     let covariates = model::Covariate::ALL
         .iter()
-        .map(|c| plots::covariate_file(c.name()));
+        .map(|c| report::plots::covariate_file(c.name()));
     fixed
         .into_iter()
         .map(String::from)
@@ -516,11 +530,11 @@ fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Stati
         normalised: locate::normalised_residuals(set, None),
         detectable: {
             let (fit_n, held_n) = (
-                fit::Normals::of(set, &a.split.fit)?,
-                fit::Normals::of(set, &a.split.held_out)?,
+                model::fit::Normals::of(set, &a.split.fit)?,
+                model::fit::Normals::of(set, &a.split.held_out)?,
             );
             let g = obs.groups.len();
-            power::detectable(&fit_n, &held_n, cfg.alpha, g + g * (g - 1) / 2)
+            select::power::detectable(&fit_n, &held_n, cfg.alpha, g + g * (g - 1) / 2)
         },
         analysis: a,
     })
@@ -544,7 +558,7 @@ fn model_free_report(m: &locate::Correction) -> report::ModelFreeReport {
     }
 }
 
-fn gap_metrics(g: &metrics::Gap) -> report::GapMetrics {
+fn gap_metrics(g: &model::metrics::Gap) -> report::GapMetrics {
     report::GapMetrics {
         chi2_per_dof: g.chi2_per_dof,
         rms_m: g.rms_m,

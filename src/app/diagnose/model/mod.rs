@@ -12,6 +12,11 @@
 
 use crate::{Error, Result};
 
+pub mod continuous;
+pub(super) mod design;
+pub mod fit;
+pub mod metrics;
+
 /// Number of catalogue effects (docs/conventions.md §8).
 pub const N_EFFECTS: usize = Effect::ALL.len();
 
@@ -288,7 +293,9 @@ impl Covariate {
 
 impl ObservationSet {
     /// Checks every index and number the statistics rely on; the error names the observation
-    /// or visit and the field.
+    /// or visit and the field. Called once, where a set is made from a survey
+    /// (`observe::observe`); the stages after it take the set as valid (screening and
+    /// the navigation model keep it so) and do not check it again.
     pub fn validate(&self) -> Result<()> {
         if let Some(tau) = self.nav_tau_s {
             if tau.iter().any(|t| !t.is_finite() || *t <= 0.0) {

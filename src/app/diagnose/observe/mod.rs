@@ -157,6 +157,7 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
     counts.patches_without_observations = without(&mut refs.patches.iter().map(|p| &p.id));
     counts.control_points_without_observations =
         without(&mut refs.control_points.iter().map(|c| &c.id));
+    set.validate()?;
     Ok(Observed { set, counts, rates })
 }
 

@@ -1,14 +1,17 @@
 //! Which catalogue effect explains the gap: after the observability of the catalogue
-//! ([`super::observability`]), candidates (each group alone, every pair, greedy forward
+//! ([`self::observability`]), candidates (each group alone, every pair, greedy forward
 //! additions) fitted on the fit references and judged on the held-out references, with likelihood-ratio significance under Holm control, and the verdict
 //! `effect` | `none` | `unexplained` (docs/conventions.md §8; method: docs/diagnosis.md,
 //! "Statistics").
 
-use super::fit::{Fit, Normals, Split};
-use super::metrics::{chi2_sf, holm_adjusted, normal_sf};
+use self::observability::{observability_of, Group, Observability};
+use super::model::fit::{Fit, Normals, Split};
+use super::model::metrics::{chi2_sf, holm_adjusted, normal_sf};
 use super::model::{Effect, ObservationSet, Theta};
-use super::observability::{observability_of, Group, Observability};
 use crate::Result;
+
+pub mod observability;
+pub mod power;
 
 /// Default family-wise error rate of the selection's tests.
 pub const DEFAULT_ALPHA: f64 = 0.01;

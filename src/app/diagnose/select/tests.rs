@@ -1,11 +1,11 @@
 //! The selection's statistical tests on observations drawn from the model itself.
 use super::*;
-use crate::app::diagnose::fit::{fit, split};
 use crate::app::diagnose::locate::{locate, model_free, DEFAULT_BINS};
-use crate::app::diagnose::metrics::gap;
+use crate::app::diagnose::model::fit::{fit, split};
+use crate::app::diagnose::model::metrics::gap;
 use crate::app::diagnose::model::synthetic::{draw, fill_residuals, Scenario};
 use crate::app::diagnose::model::{signature_index, Covariate, N_EFFECTS};
-use crate::app::diagnose::observability::observability;
+use crate::app::diagnose::select::observability::observability;
 
 /// The size of `effect` that moves points by `rms_m` on `set` (root mean square).
 fn size_for(set: &ObservationSet, effect: Effect, rms_m: f64) -> f64 {

@@ -15,7 +15,7 @@
 //! aside, or spread about its surfaces by more than [`MAX_SPREAD`] scanner sigmas, is not a
 //! reference: it is reported and left out.
 
-use super::model::ObservationSet;
+use crate::app::diagnose::model::ObservationSet;
 use nalgebra::{DMatrix, DVector};
 use std::collections::BTreeMap;
 
@@ -193,8 +193,8 @@ fn quantile(mut v: Vec<f64>, q: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
 
     /// `diagnose.max_foreign_share`'s default.
     const MAX_SHARE: f64 = 0.25;

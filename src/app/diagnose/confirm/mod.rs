@@ -5,14 +5,15 @@
 //! (at most [`MAX_ROUNDS`] rounds), and the verdict is taken on the held-out gap of that last
 //! observation, not on a linear prediction of it.
 
-use super::fit::Normals;
-use super::metrics::{chi2_sf, gap, Gap};
+use super::model::fit::Normals;
+use super::model::metrics::{chi2_sf, gap, Gap};
 use super::model::{Effect, ObservationSet};
 use super::observe::{self, References};
-use super::reprocess;
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
 use std::path::Path;
+
+pub mod reprocess;
 
 /// The estimate has settled when the re-fit at the re-observed state moves every effect by
 /// less than this many of its sigmas.

@@ -10,8 +10,8 @@
 //! offsets, fitted on the fit references, are the model-free correction whose closure is
 //! judged on the held-out references.
 
-use super::fit::{total_gram, Split};
-use super::metrics::{gap_corrected, holm, ln_chi2_sf, marginal_var_m2, Gap};
+use super::model::fit::{total_gram, Split};
+use super::model::metrics::{gap_corrected, holm, ln_chi2_sf, marginal_var_m2, Gap};
 use super::model::{Covariate, Observation, ObservationSet, Theta};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -299,7 +299,6 @@ pub fn locate(
     theta: Option<Theta>,
     bins: usize,
 ) -> Result<Vec<CovariateTest>> {
-    set.validate()?;
     if on_refs(set, refs).next().is_none() {
         return Err(Error::Numerical {
             what: "locate".to_string(),
@@ -355,7 +354,6 @@ pub fn model_free(
     theta: Option<Theta>,
     bins: usize,
 ) -> Result<Correction> {
-    set.validate()?;
     if on_refs(set, &split.fit).next().is_none() {
         return Err(Error::Numerical {
             what: format!("model-free correction along {}", covariate.name()),
@@ -384,9 +382,9 @@ pub fn model_free(
 
 #[cfg(test)]
 mod tests {
-    use super::super::fit::split;
-    use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+    use crate::app::diagnose::model::fit::split;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
 
     #[test]
     fn nothing_is_located_when_the_model_holds() {

@@ -4,7 +4,7 @@
 //! likelihood (REML) on the fit references, with every jointly estimable catalogue effect as a
 //! fixed effect, so that an effect present in the survey is not taken for navigation error.
 //!
-//! The model is the continuous-time one of [`super::continuous`]: component `k` of the error
+//! The model is the continuous-time one of [`super::model::continuous`]: component `k` of the error
 //! is `a_b s_k(t) zeta_k(t)`, `s_k` the SMRMSG sigma, `a_b` the scale of its block (position or
 //! attitude), `zeta_k` a unit first-order Gauss-Markov process of correlation time `tau_b`. A
 //! process that is not Gauss-Markov (a random walk, two time scales) gets the Gauss-Markov
@@ -13,11 +13,13 @@
 //! the observed information (the inverse Hessian of the restricted log-likelihood in the
 //! logarithms of the parameters).
 
-use super::continuous::KnotSums;
-use super::design::catalogue_row;
+use super::model::continuous::KnotSums;
+use super::model::design::catalogue_row;
 use super::model::{ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector};
+
+pub mod screen;
 
 /// Bounds of a correlation time (s): a few knots to many times a long survey.
 const TAU_BOUNDS_S: (f64, f64) = (2.0, 5000.0);
@@ -433,8 +435,8 @@ fn log_sigmas(
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
 
     /// Drawn with correlation times 120 / 15 s and the SMRMSG sigmas stated 1.5x the truth
     /// (scale 0.667): REML on all references finds them within a few sigma, and far from the

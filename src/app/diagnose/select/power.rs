@@ -15,9 +15,9 @@
 //! preferred member's sigmas, in the member's own unit, applies to the member alone, so each
 //! name gets its own fit here.
 
-use super::fit::Normals;
-use super::metrics::normal_sf;
-use super::model::{Effect, N_EFFECTS};
+use crate::app::diagnose::model::fit::Normals;
+use crate::app::diagnose::model::metrics::normal_sf;
+use crate::app::diagnose::model::{Effect, N_EFFECTS};
 
 /// The probability of naming an effect that `detectable` is defined by.
 pub const POWER: f64 = 0.9;

@@ -1,4 +1,4 @@
-//! Generalised least squares under the residual model of [`super::model`]. Without
+//! Generalised least squares under the residual model of [`super`]. Without
 //! correlation times the returns of one visit share a navigation error `z_v ~ N(0, P_v)` and
 //! visits are independent: the covariance of a visit is `C = D + G P_v G^T`, inverted by
 //! Woodbury with `P_v = L L^T`: `C^-1 = D^-1 - D^-1 G L (I + L^T G^T D^-1 G L)^-1 L^T G^T D^-1`,
@@ -9,7 +9,7 @@
 
 use super::continuous;
 use super::design::{catalogue_row, RowFn};
-use super::model::{signature_index, Effect, ObservationSet, N_EFFECTS};
+use super::{signature_index, Effect, ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, Matrix6, SymmetricEigen};
 use rand::seq::SliceRandom;
@@ -240,9 +240,8 @@ pub struct Fit {
 }
 
 impl Normals {
-    /// The catalogue's statistics on the returns of `refs` (validates `set`).
+    /// The catalogue's statistics on the returns of `refs`.
     pub fn of(set: &ObservationSet, refs: &[usize]) -> Result<Normals> {
-        set.validate()?;
         Ok(Normals {
             n: count_on(set, refs),
             m: total_gram(set, refs, N_EFFECTS + 1, &catalogue_row),
@@ -365,8 +364,8 @@ pub fn split(set: &ObservationSet, seed: u64) -> Result<Split> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
 
     /// Dense reference: `X^T C^-1 X` with the full covariance of the returns on `refs`.
     fn dense_gram(set: &ObservationSet, refs: &[usize]) -> DMatrix<f64> {

@@ -2,7 +2,7 @@
 //! corrects (docs/conventions.md §8), as `--set` lines on the loaded pipeline, and a corrected
 //! pipeline file that `kinescan run` accepts is written.
 
-use super::model::Effect;
+use crate::app::diagnose::model::Effect;
 use crate::io::atomic::write_atomic;
 use crate::io::config_file;
 use crate::pipeline::config::{LoadedPipeline, PipelineConfig, TimeModel};

@@ -9,6 +9,8 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
+pub mod plots;
+
 /// File names in the diagnosis folder.
 pub const DIAGNOSIS_JSON: &str = "diagnosis.json";
 /// The summary for a surveyor.
@@ -175,7 +177,7 @@ pub struct Diagnosis {
     pub rates: crate::trajectory::RateCheck,
     /// Extra: returns set aside as foreign to their reference, by reference
     /// (docs/diagnosis.md, "Foreign returns").
-    pub foreign: crate::app::diagnose::screen::Screening,
+    pub foreign: crate::app::diagnose::nuisance::screen::Screening,
     /// Extra: what happened to every return.
     pub counts: ObserveCounts,
     /// Extra: PNG files written beside the report.
@@ -375,7 +377,7 @@ No catalogue effect is named; each would \
             let _ = writeln!(
                 s,
                 "```\n\nor `kinescan run {}` in this folder.\n",
-                super::reprocess::CORRECTED_PIPELINE
+                super::confirm::reprocess::CORRECTED_PIPELINE
             );
         }
         if !self.plots.is_empty() {

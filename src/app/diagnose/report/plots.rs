@@ -2,7 +2,7 @@
 //! writer: normalised residuals against the leading covariates, and the held-out normalised
 //! residuals before and after the correction.
 
-use super::report::BinReport;
+use super::BinReport;
 use crate::io::atomic::write_atomic;
 use crate::plot::Plot;
 use crate::Result;

@@ -18,7 +18,7 @@
 //! `p` columns and `K` knots, whatever the survey's length.
 
 use super::design::RowFn;
-use super::model::{Observation, ObservationSet};
+use super::{Observation, ObservationSet};
 use nalgebra::{DMatrix, Matrix6, SMatrix};
 
 /// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
@@ -300,10 +300,10 @@ fn whitened_gram(
 
 #[cfg(test)]
 mod tests {
-    use super::super::design::catalogue_row;
-    use super::super::model::synthetic::{draw, Scenario};
-    use super::super::model::N_EFFECTS;
     use super::*;
+    use crate::app::diagnose::model::design::catalogue_row;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
+    use crate::app::diagnose::model::N_EFFECTS;
 
     /// Dense reference: `C = D + H Sigma H^T` with `Sigma` the Gauss-Markov covariance of the
     /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses).

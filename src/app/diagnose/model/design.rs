@@ -1,7 +1,7 @@
 //! Design rows of the GLS products `X^T C^-1 X`: what the fit and the continuous-time model
 //! accumulate per return.
 
-use super::model::{Observation, N_EFFECTS};
+use super::{Observation, N_EFFECTS};
 
 /// One design row, sparse: `(column, value)` entries, each column at most once.
 pub(crate) type RowFn<'a> = dyn Fn(&Observation, &mut Vec<(usize, f64)>) + Sync + 'a;

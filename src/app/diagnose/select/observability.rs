@@ -2,8 +2,8 @@
 //! pairwise correlations and the inseparable groups with a hint of what would separate them
 //! (docs/conventions.md §8; method: docs/diagnosis.md, "Statistics").
 
-use super::fit::Normals;
-use super::model::{Effect, ObservationSet, N_EFFECTS};
+use crate::app::diagnose::model::fit::Normals;
+use crate::app::diagnose::model::{Effect, ObservationSet, N_EFFECTS};
 use crate::Result;
 use nalgebra::{DMatrix, SymmetricEigen};
 
@@ -130,7 +130,7 @@ pub fn observability(
 }
 
 pub(crate) fn observability_of(normals: &Normals, effects: &[Effect]) -> Observability {
-    let col = |e: Effect| super::model::signature_index(e);
+    let col = |e: Effect| crate::app::diagnose::model::signature_index(e);
     let (observable, unobservable): (Vec<Effect>, Vec<Effect>) = effects
         .iter()
         .partition(|&&e| normals.m[(col(e), col(e))] > 0.0);

@@ -3,7 +3,7 @@
 //! control.
 
 use super::fit::{count_on, total_gram};
-use super::model::{Observation, ObservationSet, Theta};
+use super::{Observation, ObservationSet, Theta};
 use crate::{Error, Result};
 
 /// The sim-to-real gap on a set of references.
@@ -25,7 +25,6 @@ pub struct Gap {
 
 /// The gap on `refs`, residuals corrected by `theta` when given.
 pub fn gap(set: &ObservationSet, refs: &[usize], theta: Option<Theta>) -> Result<Gap> {
-    set.validate()?;
     match theta {
         Some(t) => gap_corrected(set, refs, &|o| t.corrected(o)),
         None => gap_corrected(set, refs, &|o| o.residual_m),
@@ -193,8 +192,8 @@ pub fn holm_adjusted(p: &[f64]) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::super::model::synthetic::{draw, Scenario};
     use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
 
     #[test]
     fn holm_steps_down() {
