@@ -97,7 +97,7 @@ pub fn write_copc(las: &Path, copc: &Path, leaf_points: usize) -> Result<LazSumm
         laszip_header.2,
     ));
     head.extend(laszip);
-    debug_assert_eq!(head.len(), points_at);
+    assert_eq!(head.len(), points_at);
     bytes[..points_at].copy_from_slice(&head);
     write_atomic(copc, &bytes)?;
     Ok(LazSummary {

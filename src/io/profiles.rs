@@ -276,7 +276,7 @@ impl ProfileWriter {
 
     /// Appends already-encoded records (a multiple of 40 bytes).
     pub fn push_encoded(&mut self, bytes: &[u8]) -> Result<()> {
-        debug_assert_eq!(bytes.len() % PROFILE_RECORD_BYTES, 0);
+        assert_eq!(bytes.len() % PROFILE_RECORD_BYTES, 0);
         self.count += (bytes.len() / PROFILE_RECORD_BYTES) as u64;
         self.out.write_all(bytes)
     }

@@ -320,7 +320,11 @@ impl<'f> FileAccumulator<'f> {
     /// The input's report, `sha256` being the hex digest of the file as read.
     fn finish(self, input: &PreparedInput, sha256: String) -> Result<InputReport> {
         let c = self.counts;
-        debug_assert_eq!(c.read, c.written + c.rejected_total());
+        assert_eq!(
+            c.read,
+            c.written + c.rejected_total(),
+            "every return read is written or rejected"
+        );
         let path = self.file.path();
         let record = if input.original != path {
             FileRecord::of("profiles", &input.original)?

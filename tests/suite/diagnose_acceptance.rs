@@ -5,9 +5,9 @@
 //! asserts the thresholds of the acceptance.
 //!
 //! About 14 s per seed and case with the navigation model learned (2 cores), 19 cases x 5
-//! seeds (CI runs seeds 1-3; docs/diagnosis.md): a quarter of an hour, so it is
-//! `#[ignore]`d in `cargo test` and run by CI (`.ci/run`) as
-//! `KINESCAN_ACCEPT_SEEDS=10 cargo test --test suite -- --ignored diagnosis_acceptance --nocapture`.
+//! seeds: a quarter of an hour, so it is `#[ignore]`d in `cargo test`; CI (`.ci/run`) runs seeds
+//! 1-2 of every case, the full table is
+//! `KINESCAN_ACCEPT_SEEDS=10 cargo test --release --test suite -- --ignored diagnosis_acceptance --nocapture`.
 
 use kinescan::app::diagnose::model::Effect;
 use kinescan::app::diagnose::report::{Diagnosis, Verdict};
@@ -445,7 +445,7 @@ pub fn other_cases() -> Vec<Case> {
     ]
 }
 
-/// The acceptance table over `KINESCAN_ACCEPT_SEEDS` seeds (default 10; CI runs 3) per case, with the
+/// The acceptance table over `KINESCAN_ACCEPT_SEEDS` seeds (default 10; CI runs 2) per case, with the
 /// acceptance thresholds asserted; `KINESCAN_ACCEPT_CASES=label,label` runs some cases only
 /// (and asserts only theirs).
 #[test]

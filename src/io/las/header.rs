@@ -124,7 +124,7 @@ fn push_vlr(
     let start = out.len();
     vlr.write_to(&mut *out)
         .map_err(|e| Error::Invalid(format!("LAS VLR: {e}")))?;
-    debug_assert_eq!(out.len() - start, VLR_HEADER_SIZE + usize::from(len));
+    assert_eq!(out.len() - start, VLR_HEADER_SIZE + usize::from(len));
     Ok(())
 }
 
