@@ -188,6 +188,7 @@ fn auto_correct_re_processes_a_pass_with_its_diagnosed_correction() {
             effect["estimate"].as_f64().unwrap(),
             effect["sigma"].as_f64(),
         );
+        println!("{pass}: {} = {estimate} +- {sigma:?}", effect["effect"]);
         assert!(sigma.unwrap() > 0.0);
         let set = diag["set"][0].as_str().unwrap();
         assert!(
