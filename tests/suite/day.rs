@@ -26,7 +26,7 @@ pub fn simulated_day_with(dir: &Path, effects: &str) {
 }
 
 /// [`simulated_day`] of the scenario `text`.
-fn simulated_day_of(dir: &Path, text: &str) {
+pub fn simulated_day_of(dir: &Path, text: &str) {
     let sc = kinescan::sim::Scenario::parse(text, "day").unwrap();
     sim_support::run(&sc, dir, 2);
     let all = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
