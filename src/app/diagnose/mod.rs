@@ -607,3 +607,24 @@ fn bin_report(b: &locate::Bin, value: f64) -> report::BinReport {
         mean: value,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::shared_lines;
+
+    /// Pipelines with their own clocks: a clock correction gives each its own `time.t0_s`
+    /// line, the mounting line is the same for all and is the one shared.
+    #[test]
+    fn shared_lines_are_those_of_every_pipeline() {
+        let lines = |t0: &str| {
+            vec![
+                "sensor.boresight_deg=[0.1, 0.0, 0.0]".to_string(),
+                format!("time.t0_s={t0}"),
+            ]
+        };
+        let (a, b) = (lines("100.5"), lines("200.5"));
+        assert_eq!(shared_lines(&[a.clone(), b]), &a[..1]);
+        assert_eq!(shared_lines(std::slice::from_ref(&a)), a);
+        assert!(shared_lines(&[]).is_empty());
+    }
+}
