@@ -415,7 +415,7 @@ pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), inte
 
 /// [`assert_kills_resume`], each run killed once `wait` returns: given the seeded generator,
 /// the uninterrupted run's time (s) and the killed day's output folder.
-fn assert_kills_resume_when(
+pub fn assert_kills_resume_when(
     whole: &Path,
     killed: &Path,
     interrupted: usize,
