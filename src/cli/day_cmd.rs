@@ -66,10 +66,12 @@ pub fn day(a: &DayArgs, quiet: bool) -> Result<()> {
         for o in &r.outputs {
             println!("wrote {} ({} points)", o.path.display(), o.points);
         }
-        for d in &r.diagnosis {
+        // One diagnosis of the day's passes (docs/nightly.md): its verdict once.
+        if let Some(d) = r.diagnosis.first() {
+            let passes: Vec<&str> = r.diagnosis.iter().map(|d| d.pass.as_str()).collect();
             println!(
                 "diagnosis of {}: {} ({})",
-                d.pass,
+                passes.join(", "),
                 d.verdict,
                 d.folder.join("summary.md").display()
             );

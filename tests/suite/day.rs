@@ -26,7 +26,7 @@ pub fn simulated_day_with(dir: &Path, effects: &str) {
 }
 
 /// [`simulated_day`] of the scenario `text`.
-fn simulated_day_of(dir: &Path, text: &str) {
+pub fn simulated_day_of(dir: &Path, text: &str) {
     let sc = kinescan::sim::Scenario::parse(text, "day").unwrap();
     sim_support::run(&sc, dir, 2);
     let all = ProfileFile::open(&dir.join("profiles.bin")).unwrap();
@@ -415,7 +415,7 @@ pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), inte
 
 /// [`assert_kills_resume`], each run killed once `wait` returns: given the seeded generator,
 /// the uninterrupted run's time (s) and the killed day's output folder.
-fn assert_kills_resume_when(
+pub fn assert_kills_resume_when(
     whole: &Path,
     killed: &Path,
     interrupted: usize,

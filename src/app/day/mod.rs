@@ -135,15 +135,8 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
         Step::Unit(_) => None,
         _ => Some(StemLock::acquire_in(&out, "day", &out)?),
     };
-    let diagnoses = day
-        .config
-        .passes
-        .iter()
-        .map(|p| out.join(format!("diagnosis_{}", p.name)));
-    for dir in [out.clone(), out.join("units")]
-        .into_iter()
-        .chain(diagnoses)
-    {
+    let diagnosis = out.join(night::DIAGNOSIS_FOLDER);
+    for dir in [out.clone(), out.join("units"), diagnosis] {
         prepare_folder(&dir)?;
     }
     let mut timings = BTreeMap::new();
@@ -211,7 +204,7 @@ pub fn run(path: &Path, step: &Step, opts: &RunOptions) -> Result<Option<DayRepo
     check_all_done(&day, &plan, &done)?;
     let failed = rejected_passes(&day, &plan, &done);
     let started = Instant::now();
-    let diagnosis = night::diagnosis(&day, &plan, &failed)?;
+    let diagnosis = night::diagnosis(&day, &plan, &failed, opts.progress)?;
     if day.config.day.night.diagnose {
         timings.insert("diagnose".to_string(), started.elapsed().as_secs_f64());
     }

@@ -1,7 +1,8 @@
-//! The night's diagnosis (`[day.night] diagnose = true`): `kinescan diagnose` on each pass's
-//! pipeline, with the clock the plan resolved for it, against the template's `[diagnose]`
-//! patches, into `<out>/diagnosis_<pass>/` (published as its own set). A significant
-//! correction is reported; with `auto_correct = true` it is applied: the pass's units run
+//! The night's diagnosis (`[day.night] diagnose = true`): one diagnosis of the day's mount
+//! (one template, one `[sensor]`): `kinescan diagnose` of every pass's pipeline jointly, each
+//! with the clock the plan resolved for it, against the template's `[diagnose]` patches, into
+//! `<out>/diagnosis/` (published as its own set). A significant correction is reported; with
+//! `auto_correct = true` the one correction is applied to every diagnosed pass: its units run
 //! again with it ([`Correction`]) and their files make the pass's output. The corrections are
 //! decided once and kept in `<out>/corrections.json` (written before any corrected unit
 //! runs), so a restart re-processes with exactly the same ones.
@@ -19,16 +20,20 @@ use std::path::{Path, PathBuf};
 
 pub use super::config::CORRECTIONS;
 
-/// One pass's diagnosis in the day report.
+/// The folder of the day's diagnosis in the day's output folder.
+pub const DIAGNOSIS_FOLDER: &str = "diagnosis";
+
+/// One pass's diagnosis in the day report: the day's joint diagnosis, the pass's own `--set`
+/// lines.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PassDiagnosis {
     /// Pass name.
     pub pass: String,
-    /// The diagnosis folder (diagnosis.json, summary.md, plots).
+    /// The diagnosis folder (diagnosis.json, summary.md, plots): the day's one.
     pub folder: PathBuf,
     /// The verdict as `kinescan diagnose` prints it.
     pub verdict: String,
-    /// The correction, as `--set` lines (empty unless an effect is named).
+    /// The correction of this pass, as `--set` lines (empty unless an effect is named).
     pub set: Vec<String>,
     /// Held-out chi2 per degree of freedom before and after the correction.
     pub chi2_per_dof: [f64; 2],
@@ -69,11 +74,13 @@ struct Decided {
 
 /// The night's diagnosis of every pass of `day` (none unless `day.night.diagnose`); with
 /// `auto_correct`, read back from `<out>/corrections.json` or made and written there. A pass
-/// `failed` names (not published) is not diagnosed.
+/// `failed` names (not published) is not diagnosed. With `progress`, a bar shows the
+/// diagnosis' stages (when stderr is a terminal).
 pub fn diagnosis(
     day: &LoadedDay,
     plan: &Plan,
     failed: &[Option<String>],
+    progress: bool,
 ) -> Result<Vec<PassDiagnosis>> {
     let night = &day.config.day.night;
     if !night.diagnose {
@@ -81,14 +88,14 @@ pub fn diagnosis(
     }
     let patches = patches(day)?;
     if !night.auto_correct {
-        return diagnose_passes(day, plan, &patches, failed);
+        return diagnose_passes(day, plan, &patches, failed, progress);
     }
     let path = day.config.day.out.join(CORRECTIONS);
     let fingerprint = fingerprint(plan, &patches)?;
     if let Some(decided) = read_decided(&path, &fingerprint)? {
         return Ok(decided.diagnosis);
     }
-    let diagnosis = diagnose_passes(day, plan, &patches, failed)?;
+    let diagnosis = diagnose_passes(day, plan, &patches, failed, progress)?;
     let decided = Decided {
         fingerprint,
         diagnosis,
@@ -109,64 +116,79 @@ fn patches(day: &LoadedDay) -> Result<PathBuf> {
         })
 }
 
-/// Diagnoses every pass, marking the corrections `auto_correct` applies.
+/// Diagnoses the passes jointly (one mount), marking the correction `auto_correct` applies
+/// to each.
 fn diagnose_passes(
     day: &LoadedDay,
     plan: &Plan,
     patches: &Path,
     failed: &[Option<String>],
+    progress: bool,
 ) -> Result<Vec<PassDiagnosis>> {
     let out = day.config.day.out.to_path_buf();
-    let mut found = Vec::new();
-    for (pass, p) in day.config.passes.iter().enumerate() {
-        if failed[pass].is_some() {
-            continue;
-        }
-        let mut pipeline =
-            resolved_pipeline(day, plan, pass, &out.join(format!("{}.las", p.name)))?;
-        // The template's own setting, not the units' (a `corrected.toml` carries it).
+    let passes: Vec<usize> = (0..day.config.passes.len())
+        .filter(|&pass| failed[pass].is_none())
+        .collect();
+    let mut pipelines = Vec::with_capacity(passes.len());
+    for &pass in &passes {
+        let las = out.join(format!("{}.las", day.config.passes[pass].name));
+        let mut pipeline = resolved_pipeline(day, plan, pass, &las)?;
+        // The template's own setting, not the units' (what a corrected pipeline carries).
         pipeline.config.output.allow_empty = day.template.config.output.allow_empty;
-        let folder = out.join(format!("diagnosis_{}", p.name));
-        let req = Request {
-            patches: patches.to_path_buf(),
-            control_points: pipeline
-                .config
-                .diagnose
-                .as_ref()
-                .and_then(|d| d.control_points.as_ref())
-                .map(|c| c.to_path_buf()),
-            out_dir: folder.clone(),
-        };
-        let d = diagnose::run(&pipeline, &req)?;
-        let corrects = day.config.day.night.auto_correct && d.verdict == Verdict::Effect;
-        let applied = (corrects && !d.set.is_empty()).then(|| AppliedCorrection {
-            effects: d
-                .effects
-                .iter()
-                .map(|e| EffectEstimate {
-                    effect: e.clone(),
-                    estimate: d.estimate[e],
-                    sigma: d.sigma[e],
-                })
-                .collect(),
+        pipelines.push(pipeline);
+    }
+    let Some(first) = pipelines.first() else {
+        return Ok(Vec::new());
+    };
+    let folder = out.join(DIAGNOSIS_FOLDER);
+    let req = Request {
+        patches: patches.to_path_buf(),
+        control_points: first
+            .config
+            .diagnose
+            .as_ref()
+            .and_then(|d| d.control_points.as_ref())
+            .map(|c| c.to_path_buf()),
+        out_dir: folder.clone(),
+    };
+    let bar = if progress {
+        crate::progress::stages(0, "diagnosing the day")
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let d = diagnose::run_joint(&pipelines, &req, &bar)?;
+    let corrects = day.config.day.night.auto_correct && d.verdict == Verdict::Effect;
+    let effects: Vec<EffectEstimate> = d
+        .effects
+        .iter()
+        .map(|e| EffectEstimate {
+            effect: e.clone(),
+            estimate: d.estimate[e],
+            sigma: d.sigma[e],
+        })
+        .collect();
+    let found = passes.iter().enumerate().map(|(k, &pass)| {
+        let set = d.pipeline_sets.get(k).unwrap_or(&d.set).clone();
+        let applied = (corrects && !set.is_empty()).then(|| AppliedCorrection {
+            effects: effects.clone(),
             units: plan
                 .units
                 .iter()
                 .filter(|u| u.pass == pass)
-                .map(|u| corrected_unit_id(u, &d.set))
+                .map(|u| corrected_unit_id(u, &set))
                 .collect(),
         });
-        found.push(PassDiagnosis {
-            pass: p.name.clone(),
-            folder,
+        PassDiagnosis {
+            pass: day.config.passes[pass].name.clone(),
+            folder: folder.clone(),
             verdict: d.headline(),
-            set: d.set.clone(),
+            set,
             chi2_per_dof: [d.gap.before.chi2_per_dof, d.gap.after.chi2_per_dof],
             rms_m: [d.gap.before.rms_m, d.gap.after.rms_m],
             applied,
-        });
-    }
-    Ok(found)
+        }
+    });
+    Ok(found.collect())
 }
 
 /// The pipeline pass `pass` is processed with, writing `las`: the template with its profile
@@ -293,7 +315,7 @@ mod tests {
         let path = dir.path().join(CORRECTIONS);
         let d = PassDiagnosis {
             pass: "p01".into(),
-            folder: dir.path().join("diagnosis_p01"),
+            folder: dir.path().join(DIAGNOSIS_FOLDER),
             verdict: "effect: range_zero_m = 3.0000e-2 +- 7.6e-4".into(),
             set: vec!["sensor.range_zero_m=0.049999999955242784".into()],
             chi2_per_dof: [2.6255228312744725, 6.983812383831755e-15],

@@ -162,13 +162,32 @@ pub fn run_with_progress(
     req: &Request,
     bar: &indicatif::ProgressBar,
 ) -> Result<report::Diagnosis> {
-    observe::check_pipeline(p)?;
+    run_joint(std::slice::from_ref(p), req, bar)
+}
+
+/// [`run_with_progress`] of the surveys of one mount (a day's passes, docs/nightly.md):
+/// every pipeline of `ps` observed, the observations joined (one set of catalogue effects,
+/// each survey its own visits), the nuisance learned and the effect selected once, the
+/// correction applied to every pipeline and all observed again. The `[diagnose]` settings are
+/// the first pipeline's. With more than one pipeline no `corrected.toml` is written: each
+/// pipeline's `--set` lines are in `pipeline_sets`, those all share in `set`.
+pub fn run_joint(
+    ps: &[LoadedPipeline],
+    req: &Request,
+    bar: &indicatif::ProgressBar,
+) -> Result<report::Diagnosis> {
+    let Some(p) = ps.first() else {
+        return Err(crate::Error::Invalid("diagnosis: no pipeline".into()));
+    };
+    for q in ps {
+        observe::check_pipeline(q)?;
+        check_collisions(q, req)?;
+    }
     let cfg = p.config.diagnose.clone().unwrap_or_default();
-    check_collisions(p, req)?;
     let refs = observe::References::read(&req.patches, req.control_points.as_deref())?;
     bar.set_length(STAGES);
     bar.set_message("observing the returns on the references");
-    let mut observed = observe::observe(p, &refs, &cfg)?;
+    let mut observed = observe::observe_joint(ps, &refs, &cfg)?;
     bar.inc(1);
     bar.set_message("screening foreign returns, learning the navigation error model");
     let (learned, set) = Learned::from(&observed.set, &cfg)?;
@@ -179,7 +198,7 @@ pub fn run_with_progress(
     bar.inc(1);
     bar.set_message("observing again with the proposed correction");
     let confirmation =
-        confirm_explanation(p, req, &refs, &learned, &observed.set, &mut stats, bar)?;
+        confirm_explanation(ps, req, &refs, &learned, &observed.set, &mut stats, bar)?;
     bar.set_position(STAGES - 1);
     bar.set_message("writing the report");
     let names = output_names();
@@ -189,7 +208,7 @@ pub fn run_with_progress(
         "diagnosis",
         report::DIAGNOSIS_JSON,
         &names,
-        |dir| write_outputs(p, (observed, learned), stats, confirmation.as_ref(), dir),
+        |dir| write_outputs(ps, (observed, learned), stats, confirmation.as_ref(), dir),
     )?;
     bar.finish_and_clear();
     Ok(d)
@@ -200,7 +219,7 @@ pub fn run_with_progress(
 /// references, or the re-observed held-out gap passes the same test; else `unexplained`, with
 /// the model-free correction. Updates `stats` (verdict, named, applied, reason).
 fn confirm_explanation(
-    p: &LoadedPipeline,
+    ps: &[LoadedPipeline],
     req: &Request,
     refs: &observe::References,
     learned: &Learned,
@@ -213,7 +232,7 @@ fn confirm_explanation(
         return Ok(None);
     };
     let (null_rejected, alpha) = (sel.null.rejected, sel.alpha);
-    let cfg = p.config.diagnose.clone().unwrap_or_default();
+    let cfg = ps[0].config.diagnose.clone().unwrap_or_default();
     let ids =
         |r: &[usize]| -> Vec<String> { r.iter().map(|&i| set.reference_ids[i].clone()).collect() };
     let split = stats.analysis.split.clone();
@@ -232,7 +251,7 @@ fn confirm_explanation(
         bar.inc(1);
         learned.apply(s)
     };
-    let c = confirm::confirm(p, refs, &cfg, &req.out_dir, &proposal, &prepare)?;
+    let c = confirm::confirm(ps, refs, &cfg, &req.out_dir, &proposal, &prepare)?;
     let holds = !null_rejected || c.p_value >= alpha;
     let verdict = if holds {
         select::Verdict::Effect
@@ -290,12 +309,13 @@ fn confirm_explanation(
 /// Everything after the statistics, written into the staging folder `dir` (published by
 /// [`run`] as one set): the re-processing, the plots, the report.
 fn write_outputs(
-    p: &LoadedPipeline,
+    ps: &[LoadedPipeline],
     (observed, learned): (observe::Observed, Learned),
     stats: Statistics,
     confirmation: Option<&confirm::Confirmation>,
     dir: &Path,
 ) -> Result<report::Diagnosis> {
+    let p = &ps[0];
     let cfg = p.config.diagnose.clone().unwrap_or_default();
     let set = &observed.set;
     let ids = |refs: &[usize]| -> Vec<String> {
@@ -306,20 +326,22 @@ fn write_outputs(
     let (set_lines, after, after_normalised) = match (confirmation, &stats.model_free) {
         (Some(c), _) => {
             let z = locate::normalised_residuals(&c.set, None);
-            confirm::reprocess::write_pipeline(
-                &c.corrected.config,
-                &p.path,
-                &c.set_lines,
-                &dir.join(confirm::reprocess::CORRECTED_PIPELINE),
-            )?;
+            if let ([corrected], [lines]) = (&c.corrected[..], &c.set_lines[..]) {
+                confirm::reprocess::write_pipeline(
+                    &corrected.config,
+                    &p.path,
+                    lines,
+                    &dir.join(confirm::reprocess::CORRECTED_PIPELINE),
+                )?;
+            }
             (
                 c.set_lines.clone(),
                 gap_metrics(&c.after),
                 held_out_values(&c.set, &c.held_out, &z),
             )
         }
-        (_, Some((_, after))) => (Vec::new(), *after, Vec::new()),
-        _ => (Vec::new(), stats.before, Vec::new()),
+        (_, Some((_, after))) => (vec![Vec::new(); ps.len()], *after, Vec::new()),
+        _ => (vec![Vec::new(); ps.len()], stats.before, Vec::new()),
     };
     let mut plot_files = Vec::new();
     for t in stats.covariate_tests.iter().take(PLOTTED_COVARIATES) {
@@ -369,7 +391,8 @@ fn write_outputs(
             before: stats.before,
             after,
         },
-        set: set_lines,
+        set: shared_lines(&set_lines),
+        pipeline_sets: if ps.len() > 1 { set_lines } else { Vec::new() },
         reason: stats.reason,
         split: report::SplitReport {
             seed: cfg.seed,
@@ -394,6 +417,15 @@ fn write_outputs(
     };
     d.write(dir, &p.path)?;
     Ok(d)
+}
+
+/// The `--set` lines every pipeline's `set_lines` has (all of them for one pipeline).
+fn shared_lines(set_lines: &[Vec<String>]) -> Vec<String> {
+    let Some((first, rest)) = set_lines.split_first() else {
+        return Vec::new();
+    };
+    let shared = |l: &&String| rest.iter().all(|r| r.contains(l));
+    first.iter().filter(shared).cloned().collect()
 }
 
 /// `values` of the observations on `refs`.
@@ -573,5 +605,26 @@ fn bin_report(b: &locate::Bin, value: f64) -> report::BinReport {
         range: [b.lower, b.upper],
         n: b.n,
         mean: value,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::shared_lines;
+
+    /// Pipelines with their own clocks: a clock correction gives each its own `time.t0_s`
+    /// line, the mounting line is the same for all and is the one shared.
+    #[test]
+    fn shared_lines_are_those_of_every_pipeline() {
+        let lines = |t0: &str| {
+            vec![
+                "sensor.boresight_deg=[0.1, 0.0, 0.0]".to_string(),
+                format!("time.t0_s={t0}"),
+            ]
+        };
+        let (a, b) = (lines("100.5"), lines("200.5"));
+        assert_eq!(shared_lines(&[a.clone(), b]), &a[..1]);
+        assert_eq!(shared_lines(std::slice::from_ref(&a)), a);
+        assert!(shared_lines(&[]).is_empty());
     }
 }

@@ -34,9 +34,9 @@ pub struct Proposal<'a> {
 pub struct Confirmation {
     /// The correction applied in the last round (the proposal plus every re-fit).
     pub applied: Vec<(Effect, f64)>,
-    /// Its `--set` lines and the corrected pipeline they give.
-    pub set_lines: Vec<String>,
-    pub corrected: LoadedPipeline,
+    /// Per pipeline diagnosed, its `--set` lines and the corrected pipeline they give.
+    pub set_lines: Vec<Vec<String>>,
+    pub corrected: Vec<LoadedPipeline>,
     /// Rounds run, and the last re-fit's largest move in sigmas.
     pub rounds: usize,
     pub last_move_sigma: f64,
@@ -48,10 +48,11 @@ pub struct Confirmation {
     pub p_value: f64,
 }
 
-/// Applies `proposal` to `p`, observes `refs` again (`prepare`: the diagnosis' screening and
-/// navigation model) until the estimate settles, and returns the last observation's gap.
+/// Applies `proposal` to every pipeline of `ps` (the surveys of one mount, diagnosed jointly),
+/// observes `refs` again (`prepare`: the diagnosis' screening and navigation model) until the
+/// estimate settles, and returns the last observation's gap.
 pub fn confirm(
-    p: &LoadedPipeline,
+    ps: &[LoadedPipeline],
     refs: &References,
     cfg: &DiagnoseConfig,
     out_dir: &Path,
@@ -63,9 +64,16 @@ pub fn confirm(
     let mut rounds = 0;
     loop {
         rounds += 1;
-        let set_lines = reprocess::set_lines(&p.config, &applied)?;
-        let corrected = reprocess::corrected(p, &set_lines, out_dir)?;
-        let set = prepare(&observe::observe(&corrected, refs, cfg)?.set);
+        let set_lines = ps
+            .iter()
+            .map(|p| reprocess::set_lines(&p.config, &applied))
+            .collect::<Result<Vec<_>>>()?;
+        let corrected = ps
+            .iter()
+            .zip(&set_lines)
+            .map(|(p, lines)| reprocess::corrected(p, lines, out_dir))
+            .collect::<Result<Vec<_>>>()?;
+        let set = prepare(&observe::observe_joint(&corrected, refs, cfg)?.set);
         let fit_refs = references_of(&set, proposal.fit_ids);
         let refit = Normals::of(&set, &fit_refs)?.fit(&effects)?;
         let last_move_sigma = refit

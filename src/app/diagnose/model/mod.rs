@@ -15,6 +15,7 @@ use crate::{Error, Result};
 pub mod continuous;
 pub(super) mod design;
 pub mod fit;
+mod join;
 pub mod metrics;
 
 /// Number of catalogue effects (docs/conventions.md §8).

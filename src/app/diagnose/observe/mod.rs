@@ -10,11 +10,13 @@
 //! one class of [`ObserveCounts`].
 
 mod counts;
+mod joint;
 mod nothing_left;
 mod patch_index;
 mod targets;
 
 pub use counts::{ObserveCounts, Observed};
+pub use joint::observe_joint;
 
 use super::model::{Covariates, Effect, Observation, ObservationSet, Side, Visit};
 use crate::geo::rotations::{roll_pitch_heading, wrap_pi};

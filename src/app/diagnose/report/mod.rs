@@ -149,8 +149,13 @@ pub struct Diagnosis {
     pub located_in: Vec<String>,
     /// On the held-out references.
     pub gap: GapBeforeAfter,
-    /// `--set` lines that re-run the pipeline with the effect added.
+    /// `--set` lines that re-run the pipeline with the effect added (a joint diagnosis of
+    /// several pipelines: the lines they all share).
     pub set: Vec<String>,
+    /// Extra, a joint diagnosis of several pipelines only (a day's passes): each pipeline's
+    /// `--set` lines, in the order given (the same correction added to each one's values).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub pipeline_sets: Vec<Vec<String>>,
     /// Extra: why the verdict (one sentence).
     pub reason: String,
     /// Extra: reference ids of the fit and held-out halves, and the split seed.
@@ -202,6 +207,22 @@ impl Diagnosis {
             .map_err(|e| Error::Invalid(format!("diagnosis JSON: {e}")))?;
         write_atomic(&dir.join(DIAGNOSIS_JSON), format!("{json}\n").as_bytes())?;
         write_atomic(&dir.join(SUMMARY_MD), self.summary(pipeline).as_bytes())
+    }
+
+    /// The correction of a joint diagnosis: each pipeline's `--set` lines.
+    fn write_pipeline_sets(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "## The correction, per pipeline\n\nThe {} pipelines were diagnosed jointly; the \
+             correction adds the same values to each one's own (diagnosis.json \
+             `pipeline_sets`):\n",
+            self.pipeline_sets.len()
+        );
+        for (k, lines) in self.pipeline_sets.iter().enumerate() {
+            let sets: Vec<String> = lines.iter().map(|l| format!("`--set '{l}'`")).collect();
+            let _ = writeln!(s, "- pipeline {k}: {}", sets.join(" "));
+        }
+        s.push('\n');
     }
 
     /// The navigation error model used, and whence.
@@ -370,7 +391,9 @@ No catalogue effect is named; each would \
                 m.closed_fraction * 100.0
             );
         }
-        if !self.set.is_empty() {
+        if !self.pipeline_sets.is_empty() {
+            self.write_pipeline_sets(&mut s);
+        } else if !self.set.is_empty() {
             let _ = writeln!(s, "## Re-run with the correction\n\n```");
             let sets: Vec<String> = self.set.iter().map(|l| format!("--set '{l}'")).collect();
             let _ = writeln!(s, "kinescan run {} {}", pipeline.display(), sets.join(" "));
