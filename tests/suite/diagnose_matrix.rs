@@ -3,9 +3,10 @@
 //! model the diagnosis fits (correlation times set independently over 10-300 s, random walk
 //! plus white noise, two time scales, SMRMSG sigmas stated 0.7x and 1.5x, zero SBET rate
 //! fields with roll/pitch vibration), with and without foreign returns on the references, on
-//! one lap and on the 15-minute survey; per cell: no effect, every catalogue effect at twice,
-//! once and 0.4 times the size the diagnosis of the same cell reports as `detectable`, and the
-//! two effects outside the catalogue; the navigation model always learned from the survey.
+//! one lap and on the 15-minute survey; per cell and seed: no effect, every catalogue effect at
+//! twice, once and 0.4 times the size the diagnosis of the same survey without effect reports
+//! as `detectable`, and the two effects outside the catalogue; the navigation model always
+//! learned from the survey.
 //!
 //! Sizes in units of `detectable` (`D`): naming takes the fit test at Holm's first level and
 //! the held-out test, so `D` is about 5 sigmas of the fit estimate; 2 D is about 10 sigmas (the
@@ -239,8 +240,31 @@ fn diagnose_case(text: &str, length: &str, seed: u64) -> Option<Diagnosis> {
     }
 }
 
-/// Runs one cell (model, foreign, length): a calibration diagnosis without effect (seed 0)
-/// for `detectable`, then every selected case over `seeds`.
+/// Prints one diagnosis of the matrix.
+fn print_outcome(label: &str, size: f64, seed: u64, d: &Diagnosis) {
+    println!(
+        "  {label} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} -> {:.3} located {:?} nav tau {:.0}/{:.0} s scale {:.2}/{:.2} foreign {}",
+        serde_json::to_string(&d.verdict).unwrap(),
+        d.effects,
+        d.estimate,
+        d.sigma,
+        d.gap.before.chi2_per_dof,
+        d.gap.after.chi2_per_dof,
+        d.located_in,
+        d.nuisance.position_tau_s.value,
+        d.nuisance.attitude_tau_s.value,
+        d.nuisance.position_scale.value,
+        d.nuisance.attitude_scale.value,
+        d.foreign.set_aside,
+    );
+}
+
+/// Runs one cell (model, foreign, length) over `seeds`: per seed, the survey without effect
+/// (the `none` case when selected), whose `detectable` sizes that seed's catalogue cases, then
+/// every selected case. `D` is what the diagnosis of the same survey reports: an honest
+/// `detectable` is named in 90% of seeds at it. (A `D` from one calibration seed for all seeds
+/// would test another survey's `D` as well: on one lap it varies by a factor 2 between seeds,
+/// `range_zero_m` 1.4-2.9 mm on "two gm", and the power curve is steep there.)
 fn run_cell(
     model: &NavModel,
     foreign: bool,
@@ -250,55 +274,46 @@ fn run_cell(
     seeds: u64,
 ) -> Vec<Outcome> {
     println!("cell {} / foreign {foreign} / {length}", model.label);
-    let calibration = diagnose_case(&scenario(model, foreign, ""), length, 0)
-        .expect("the calibration diagnosis of the cell runs");
     let mut out = Vec::new();
-    for case in cases {
-        let runs: Vec<(Case, f64)> = match &case.expect {
-            Expect::Effects(e) if e.len() == 1 => {
-                let Some(Some(det)) = calibration.detectable.get(e[0].0.name()) else {
-                    println!("  {}: no detectable size on this survey", case.label);
-                    continue;
-                };
-                sizes
-                    .iter()
-                    .map(|&k| (scaled(case, k * det / e[0].1.abs()), k))
-                    .collect()
-            }
-            _ => vec![(case.clone(), 0.0)],
-        };
-        for (c, size) in runs {
-            for seed in 1..=seeds {
-                let d = diagnose_case(&scenario(model, foreign, &c.effects_toml), length, seed);
-                if let Some(d) = &d {
-                    println!(
-                        "  {} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} -> {:.3} located {:?} nav tau {:.0}/{:.0} s scale {:.2}/{:.2} foreign {}",
-                        c.label,
-                        serde_json::to_string(&d.verdict).unwrap(),
-                        d.effects,
-                        d.estimate,
-                        d.sigma,
-                        d.gap.before.chi2_per_dof,
-                        d.gap.after.chi2_per_dof,
-                        d.located_in,
-                        d.nuisance.position_tau_s.value,
-                        d.nuisance.attitude_tau_s.value,
-                        d.nuisance.position_scale.value,
-                        d.nuisance.attitude_scale.value,
-                        d.foreign.set_aside,
+    for seed in 1..=seeds {
+        let calibration = diagnose_case(&scenario(model, foreign, ""), length, seed)
+            .expect("the diagnosis of the survey without effect runs");
+        let mut runs: Vec<(Case, f64)> = Vec::new();
+        for case in cases {
+            match &case.expect {
+                Expect::Effects(e) if e.len() == 1 => {
+                    let Some(Some(det)) = calibration.detectable.get(e[0].0.name()) else {
+                        println!("  {} seed {seed}: no detectable size", case.label);
+                        continue;
+                    };
+                    runs.extend(
+                        sizes
+                            .iter()
+                            .map(|&k| (scaled(case, k * det / e[0].1.abs()), k)),
                     );
                 }
-                out.push(Outcome {
-                    model: model.label,
-                    foreign,
-                    length,
-                    case: c.label.clone(),
-                    size,
-                    seed,
-                    d,
-                    expect: c.expect.clone(),
-                });
+                _ => runs.push((case.clone(), 0.0)),
             }
+        }
+        for (c, size) in runs {
+            let d = if c.label == "none" {
+                Some(calibration.clone())
+            } else {
+                diagnose_case(&scenario(model, foreign, &c.effects_toml), length, seed)
+            };
+            if let Some(d) = &d {
+                print_outcome(&c.label, size, seed, d);
+            }
+            out.push(Outcome {
+                model: model.label,
+                foreign,
+                length,
+                case: c.label.clone(),
+                size,
+                seed,
+                d,
+                expect: c.expect.clone(),
+            });
         }
     }
     out
@@ -315,6 +330,8 @@ const NOT_YET_MET: [&str; 5] = [
     "named at 2 D",
     "within 2 sigma at 2 D",
     "after-gap honest at 2 D",
+    // With each survey's own `D`: 69% of 72 on CI's models (seeds 1-4) and 81% of 90 over 30
+    // seeds of "two gm" (docs/diagnosis.md, *The matrix*).
     "named at D",
 ];
 
@@ -411,7 +428,8 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
     need(out_ok, out.len(), 0.90, "unexplained");
     need(out_located, out.len(), 0.90, "located");
     // `detectable` honest: named in 85-95% at D; a band of 10 points needs about 50
-    // diagnoses to be told from its edges (binomial sd 4%), so fewer are printed only.
+    // diagnoses to be told from its edges (binomial sd 4%), so fewer are printed only. Cells
+    // share each seed's scanner noise: independent draws are (effect, seed) pairs.
     if at_d.len() >= 50 {
         let r = at_d_named as f64 / at_d.len() as f64;
         if !(0.85..=0.95).contains(&r) {
