@@ -323,9 +323,21 @@ fn write_outputs(
     };
     let held_out_ids = ids(&stats.held_out);
     let before_normalised = held_out_values(set, &stats.held_out, &stats.normalised);
+    let (mut before, mut same_returns) = (stats.before, true);
     let (set_lines, after, after_normalised) = match (confirmation, &stats.model_free) {
         (Some(c), _) => {
             let z = locate::normalised_residuals(&c.set, None);
+            let matched = confirm::matched_gaps((set, &stats.held_out), (&c.set, &c.held_out))?;
+            let after = match matched {
+                Some((b, a)) => {
+                    before = gap_metrics(&b);
+                    gap_metrics(&a)
+                }
+                None => {
+                    same_returns = false;
+                    gap_metrics(&c.after)
+                }
+            };
             if let ([corrected], [lines]) = (&c.corrected[..], &c.set_lines[..]) {
                 confirm::reprocess::write_pipeline(
                     &corrected.config,
@@ -336,7 +348,7 @@ fn write_outputs(
             }
             (
                 c.set_lines.clone(),
-                gap_metrics(&c.after),
+                after,
                 held_out_values(&c.set, &c.held_out, &z),
             )
         }
@@ -388,8 +400,9 @@ fn write_outputs(
             .collect(),
         located_in: stats.located_in,
         gap: report::GapBeforeAfter {
-            before: stats.before,
+            before,
             after,
+            same_returns,
         },
         set: shared_lines(&set_lines),
         pipeline_sets: if ps.len() > 1 { set_lines } else { Vec::new() },

@@ -11,6 +11,7 @@ use super::model::{Effect, ObservationSet};
 use super::observe::{self, References};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 pub mod reprocess;
@@ -110,4 +111,130 @@ pub fn references_of(set: &ObservationSet, ids: &[String]) -> Vec<usize> {
     ids.iter()
         .filter_map(|id| set.reference_ids.iter().position(|r| r == id))
         .collect()
+}
+
+/// The held-out gaps before and after on the same returns: the observations on `before_held`
+/// of `before` and on `after_held` of `after` (the survey observed again) that are of one
+/// return in both (same reference id, pass and record; a control point's observations in
+/// their order). A correction moves returns onto and off the patches, and a visit that
+/// gained or lost one is thinned at other returns, so the two observations' own held-out
+/// returns differ; RMS and mean are only comparable on the returns they share. None when
+/// they share none.
+pub fn matched_gaps(
+    (before, before_held): (&ObservationSet, &[usize]),
+    (after, after_held): (&ObservationSet, &[usize]),
+) -> Result<Option<(Gap, Gap)>> {
+    let before_keys = return_keys(before, before_held, &Some);
+    let by_id: Vec<Option<usize>> = after
+        .reference_ids
+        .iter()
+        .map(|id| before.reference_ids.iter().position(|r| r == id))
+        .collect();
+    let after_keys = return_keys(after, after_held, &|r| by_id[r]);
+    let shared = |keys: &[Option<ReturnKey>], other: &[Option<ReturnKey>]| -> Vec<bool> {
+        let other: BTreeSet<ReturnKey> = other.iter().flatten().copied().collect();
+        keys.iter()
+            .map(|k| k.is_some_and(|k| other.contains(&k)))
+            .collect()
+    };
+    let (keep_before, keep_after) = (
+        shared(&before_keys, &after_keys),
+        shared(&after_keys, &before_keys),
+    );
+    if !keep_before.contains(&true) {
+        return Ok(None);
+    }
+    let b = gap(&subset(before, &keep_before), before_held, None)?;
+    let a = gap(&subset(after, &keep_after), after_held, None)?;
+    Ok(Some((b, a)))
+}
+
+/// Which return an observation is: (reference index in the first set, pass, record, its rank
+/// among the observations with the same three).
+type ReturnKey = (usize, usize, usize, usize);
+
+/// The key of every observation of `set` on `refs` (None elsewhere, or when `reference`
+/// maps its reference to none).
+fn return_keys(
+    set: &ObservationSet,
+    refs: &[usize],
+    reference: &dyn Fn(usize) -> Option<usize>,
+) -> Vec<Option<ReturnKey>> {
+    let mut on = vec![false; set.reference_ids.len()];
+    for &r in refs {
+        on[r] = true;
+    }
+    let mut seen: BTreeMap<(usize, usize, usize), usize> = BTreeMap::new();
+    set.observations
+        .iter()
+        .map(|o| {
+            let r = reference(o.reference).filter(|_| on[o.reference])?;
+            let id = (r, o.covariates.pass, o.record);
+            let rank = seen.entry(id).or_default();
+            *rank += 1;
+            Some((id.0, id.1, id.2, *rank))
+        })
+        .collect()
+}
+
+/// `set` with only the observations `keep` marks (visits and references kept).
+fn subset(set: &ObservationSet, keep: &[bool]) -> ObservationSet {
+    ObservationSet {
+        observations: set
+            .observations
+            .iter()
+            .zip(keep)
+            .filter(|(_, &k)| k)
+            .map(|(o, _)| o.clone())
+            .collect(),
+        ..set.clone_without_observations()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::diagnose::model::synthetic::{draw, Scenario};
+
+    #[test]
+    fn before_and_after_are_over_the_returns_both_observations_found() {
+        let before = draw(&Scenario::default(), 3);
+        let refs = before.observed_references();
+        // Observed again: every third return lost, every fifth one another record (thinned
+        // elsewhere), the residuals halved by the correction.
+        let mut after = before.clone();
+        after.observations.retain(|o| o.record % 3 != 0);
+        for o in &mut after.observations {
+            o.residual_m *= 0.5;
+            if o.record % 5 == 0 {
+                o.record += before.observations.len();
+            }
+        }
+        let matched = matched_gaps((&before, &refs), (&after, &refs));
+        let (b, a) = matched.unwrap().expect("returns in common");
+        let shared: Vec<f64> = before
+            .observations
+            .iter()
+            .filter(|o| o.record % 3 != 0 && o.record % 5 != 0)
+            .map(|o| o.residual_m)
+            .collect();
+        let n = shared.len();
+        let rms = (shared.iter().map(|r| r * r).sum::<f64>() / n as f64).sqrt();
+        let mean = shared.iter().sum::<f64>() / n as f64;
+        assert_eq!((b.n, a.n), (n, n));
+        assert!((b.rms_m - rms).abs() <= 1e-12 * rms, "{} {rms}", b.rms_m);
+        assert!(
+            (a.rms_m - 0.5 * rms).abs() <= 1e-12 * rms,
+            "{} {rms}",
+            a.rms_m
+        );
+        assert!((a.mean_m - 0.5 * mean).abs() <= 1e-12 * rms);
+        // Nothing in common: no matched gaps.
+        for o in &mut after.observations {
+            o.record += 2 * before.observations.len();
+        }
+        assert!(matched_gaps((&before, &refs), (&after, &refs))
+            .unwrap()
+            .is_none());
+    }
 }

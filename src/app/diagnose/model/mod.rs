@@ -145,6 +145,10 @@ pub struct Observation {
     pub reference: usize,
     /// Index of its visit in [`ObservationSet::visits`].
     pub visit: usize,
+    /// Record index of its return in its pass's profile file (a control point's
+    /// observations: their visit's first return): with the pass, which return it is, so two
+    /// observations of one survey can be compared return by return.
+    pub record: usize,
     /// `n . (x_e - c_e)` (m): signed distance of the point georeferenced with the configured
     /// values from the patch plane (`n` unit normal, `c_e` centre, ECEF).
     pub residual_m: f64,

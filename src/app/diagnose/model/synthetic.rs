@@ -147,6 +147,7 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
                 set.observations.push(Observation {
                     reference,
                     visit: v,
+                    record: set.observations.len(),
                     residual_m: 0.0,
                     var_white_m2,
                     nav_gradient,

@@ -40,6 +40,9 @@ use targets::{TargetIndex, TargetVisit};
 
 /// Returns per parallel work item of the first pass.
 const CHUNK_RETURNS: usize = 1 << 15;
+/// Work items georeferenced at once before their hits are filed by reference: the chunks'
+/// own lists stay bounded (64 x 32 Ki returns) whatever the survey's length.
+const BATCH_CHUNKS: usize = 64;
 
 /// Checks that a pipeline can be diagnosed: per-point uncertainty needs `[uncertainty]` and
 /// the SMRMSG file; errors name the pipeline file and the missing key.
@@ -120,14 +123,17 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         control_points_read: refs.control_points.len(),
         ..Default::default()
     };
-    let (mut hits, mut target_hits) = (Vec::new(), Vec::new());
+    let mut found = Found::default();
     let rates = traj.rate_check();
     for (pass, input) in files.iter().enumerate() {
         let model = ReturnModel::new(p, &traj, &input.file)?;
-        let found = first_pass(&model, &input.file, (&index, &targets), &mut counts);
-        hits.extend(found.patches.into_iter().map(|h| (pass, h)));
-        target_hits.extend(found.targets.into_iter().map(|h| (pass, h)));
+        let at = (&index, &targets);
+        first_pass(&model, &input.file, (pass, at), &mut found, &mut counts);
     }
+    let Found {
+        patches: hits,
+        targets: target_hits,
+    } = found;
     if hits.is_empty() {
         nothing_left::check_rejected(p, &counts)?;
     }
@@ -168,8 +174,8 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
 fn check_found(
     refs: &References,
     opts: &DiagnoseConfig,
-    hits: &[(usize, Hit)],
-    target_hits: &[(usize, Hit)],
+    hits: &Hits,
+    target_hits: &Hits,
 ) -> Result<()> {
     if hits.is_empty() {
         let problem = format!(
@@ -197,14 +203,17 @@ fn check_found(
     Ok(())
 }
 
-/// One return on a reference (a patch or a control point's target), from the first pass.
+/// One return on a reference (a patch or a control point's target), from the first pass:
+/// its record in the pass's file and its time (s). 16 bytes: the first pass holds one per
+/// return on a reference until the visits are thinned.
 #[derive(Debug, Clone, Copy)]
 struct Hit {
     index: usize,
-    /// Index of the patch or control point.
-    patch: usize,
     t_s: f64,
 }
+
+/// Hits by (reference, pass), each list in file order.
+type Hits = BTreeMap<(usize, usize), Vec<Hit>>;
 
 /// A visit before its observations are computed: reference (patch or control point), pass
 /// and the kept returns.
@@ -380,80 +389,100 @@ impl<'a> ReturnModel<'a> {
     }
 }
 
-/// Per-chunk tallies of the first pass.
+/// Per-chunk tallies of the first pass; hits tagged with their patch or control point.
 #[derive(Default)]
 struct ChunkTally {
     rejected: BTreeMap<RejectReason, u64>,
     off_patches: u64,
     off_plane: u64,
-    hits: Vec<Hit>,
-    target_hits: Vec<Hit>,
+    hits: Vec<(usize, Hit)>,
+    target_hits: Vec<(usize, Hit)>,
 }
 
-/// The returns of one file on the references, in file order.
+/// The returns of every file on the references.
+#[derive(Default)]
 struct Found {
-    patches: Vec<Hit>,
-    targets: Vec<Hit>,
+    patches: Hits,
+    targets: Hits,
 }
 
-/// Georeferences every return of one file and keeps those on a control point's target (first)
-/// or on a patch.
+/// Georeferences every return of one file (pass `pass`) and files those on a control
+/// point's target (first) or on a patch into `found`, a batch of chunks at a time.
 fn first_pass(
     model: &ReturnModel,
     file: &ProfileFile,
-    (index, targets): (&PatchIndex, &TargetIndex),
+    (pass, at): (usize, (&PatchIndex, &TargetIndex)),
+    found: &mut Found,
     counts: &mut ObserveCounts,
-) -> Found {
+) {
     let n = file.len();
-    let tallies: Vec<ChunkTally> = (0..n.div_ceil(CHUNK_RETURNS))
-        .into_par_iter()
-        .map(|k| {
-            let mut tally = ChunkTally::default();
-            let mut cursor = model.cursor();
-            for i in k * CHUNK_RETURNS..((k + 1) * CHUNK_RETURNS).min(n) {
-                let r = file.get(i);
-                let loc = match model.locate(&r, &mut cursor) {
-                    Err(reason) => {
-                        *tally.rejected.entry(reason).or_default() += 1;
-                        continue;
-                    }
-                    Ok(loc) => loc,
-                };
-                let hit = |patch| Hit {
-                    index: i,
-                    patch,
-                    t_s: loc.t_s,
-                };
-                if let Some(t) = targets.find(&loc.x_e, r.intensity) {
-                    tally.target_hits.push(hit(t));
-                    continue;
-                }
-                match index.place(&loc.x_e) {
-                    Place::Off => tally.off_patches += 1,
-                    Place::OffPlane => tally.off_plane += 1,
-                    Place::On(patch) => tally.hits.push(hit(patch)),
-                }
+    let chunks = n.div_ceil(CHUNK_RETURNS);
+    for batch in (0..chunks).step_by(BATCH_CHUNKS) {
+        let tallies: Vec<ChunkTally> = (batch..(batch + BATCH_CHUNKS).min(chunks))
+            .into_par_iter()
+            .map(|k| {
+                chunk_tally(
+                    model,
+                    file,
+                    at,
+                    k * CHUNK_RETURNS..((k + 1) * CHUNK_RETURNS).min(n),
+                )
+            })
+            .collect();
+        for t in tallies {
+            for (reason, k) in t.rejected {
+                *counts.rejected.entry(reason).or_default() += k;
             }
-            tally
-        })
-        .collect();
-    counts.returns_read += n as u64;
-    let mut found = Found {
-        patches: Vec::new(),
-        targets: Vec::new(),
-    };
-    for t in tallies {
-        for (reason, k) in t.rejected {
-            *counts.rejected.entry(reason).or_default() += k;
+            counts.off_patches += t.off_patches;
+            counts.off_plane += t.off_plane;
+            counts.on_patches += t.hits.len() as u64;
+            counts.on_targets += t.target_hits.len() as u64;
+            for (patch, h) in t.hits {
+                found.patches.entry((patch, pass)).or_default().push(h);
+            }
+            for (point, h) in t.target_hits {
+                found.targets.entry((point, pass)).or_default().push(h);
+            }
         }
-        counts.off_patches += t.off_patches;
-        counts.off_plane += t.off_plane;
-        counts.on_patches += t.hits.len() as u64;
-        counts.on_targets += t.target_hits.len() as u64;
-        found.patches.extend(t.hits);
-        found.targets.extend(t.target_hits);
     }
-    found
+    counts.returns_read += n as u64;
+}
+
+/// The first pass over records `range` of `file`; their pages are released after (the
+/// resident set stays flat over the file).
+fn chunk_tally(
+    model: &ReturnModel,
+    file: &ProfileFile,
+    (index, targets): (&PatchIndex, &TargetIndex),
+    range: std::ops::Range<usize>,
+) -> ChunkTally {
+    let mut tally = ChunkTally::default();
+    let mut cursor = model.cursor();
+    for i in range.clone() {
+        let r = file.get(i);
+        let loc = match model.locate(&r, &mut cursor) {
+            Err(reason) => {
+                *tally.rejected.entry(reason).or_default() += 1;
+                continue;
+            }
+            Ok(loc) => loc,
+        };
+        let hit = Hit {
+            index: i,
+            t_s: loc.t_s,
+        };
+        if let Some(t) = targets.find(&loc.x_e, r.intensity) {
+            tally.target_hits.push((t, hit));
+            continue;
+        }
+        match index.place(&loc.x_e) {
+            Place::Off => tally.off_patches += 1,
+            Place::OffPlane => tally.off_plane += 1,
+            Place::On(patch) => tally.hits.push((patch, hit)),
+        }
+    }
+    file.release(range);
+    tally
 }
 
 /// How returns on one reference in one pass make visits.
@@ -485,15 +514,10 @@ impl VisitRule {
 }
 
 /// Splits the hits of each reference and pass into visits, drops short ones and thins long
-/// ones; `hits` are tagged with their pass. Gives the visits and the numbers of returns in
-/// short visits and thinned out.
-fn group_visits(hits: Vec<(usize, Hit)>, rule: &VisitRule) -> (Vec<PendingVisit>, u64, u64) {
-    let mut by_patch: BTreeMap<(usize, usize), Vec<Hit>> = BTreeMap::new();
-    for (pass, h) in hits {
-        by_patch.entry((h.patch, pass)).or_default().push(h);
-    }
+/// ones. Gives the visits and the numbers of returns in short visits and thinned out.
+fn group_visits(hits: Hits, rule: &VisitRule) -> (Vec<PendingVisit>, u64, u64) {
     let (mut visits, mut short, mut thinned) = (Vec::new(), 0, 0);
-    for ((patch, pass), mut list) in by_patch {
+    for ((patch, pass), mut list) in hits {
         list.sort_by(|a, b| a.t_s.total_cmp(&b.t_s).then(a.index.cmp(&b.index)));
         let mut start = 0;
         for k in 1..=list.len() {
@@ -668,17 +692,18 @@ fn observe_visit(
         .iter()
         .map(|h| model.relocate(file, h.index, &mut cursor))
         .collect::<Result<Vec<_>>>()?;
+    release_visit(file, &pv.hits);
     let n_e = frame.axes_e.row(2).transpose();
     let pairs = located.iter().map(|(r, loc)| (r, loc));
     let ranges = denoised_ranges_m(pairs, model, &n_e, &frame.centre_e);
     let mut obs = Vec::with_capacity(located.len());
-    for ((r, loc), range_m) in located.iter().zip(ranges) {
+    for (((r, loc), range_m), h) in located.iter().zip(ranges).zip(&pv.hits) {
         let cov = Covariates {
             reference_id: reference,
             pass: pv.pass,
             ..covariates(loc, model, &n_e, r)
         };
-        let ids = (reference, visit);
+        let ids = (reference, visit, h.index);
         let at = Surface {
             axis_e: &n_e,
             centre_e: &frame.centre_e,
@@ -692,6 +717,17 @@ fn observe_visit(
         nav_cov,
     };
     Ok((v, obs))
+}
+
+/// Releases the pages of the records a visit read: the second pass reads a few returns per
+/// page, and a page left resident per observation would hold hundreds of MB.
+fn release_visit(file: &ProfileFile, hits: &[Hit]) {
+    let (lo, hi) = hits.iter().fold((usize::MAX, 0), |(lo, hi), h| {
+        (lo.min(h.index), hi.max(h.index + 1))
+    });
+    if lo < hi {
+        file.release(lo..hi);
+    }
 }
 
 /// `P_v`: SMRMSG variances at `t_mid` plus `survey_ned` (m^2, NED) in the position block: a
@@ -803,7 +839,8 @@ struct Surface<'a> {
     range_m: f64,
 }
 
-/// The observation of one located return along `at.axis_e` from `at.centre_e`: residual,
+/// The observation of one located return along `at.axis_e` from `at.centre_e` (`ids`:
+/// reference, visit, record of the return in its pass's file): residual,
 /// white variance, navigation gradient and effect signatures, all from `n^T J` with `J` the
 /// analytic Jacobian of the uncertainty model (the range scale's at range `at.range_m`).
 fn observation_along(
@@ -811,7 +848,7 @@ fn observation_along(
     model: &ReturnModel,
     at: &Surface,
     r: &RawReturn,
-    ids: (usize, usize),
+    ids: (usize, usize, usize),
     covariates: Covariates,
 ) -> Observation {
     let n_e = at.axis_e;
@@ -831,6 +868,7 @@ fn observation_along(
     Observation {
         reference: ids.0,
         visit: ids.1,
+        record: ids.2,
         residual_m: n_e.dot(&(loc.x_e - at.centre_e)),
         var_white_m2,
         nav_gradient: std::array::from_fn(|k| g[k]),

@@ -12,8 +12,8 @@
 //! (docs/diagnosis.md gives the derivation and the check on the simulator).
 
 use super::{
-    beam_e, covariates, denoised_ranges_m, observation_along, visit_nav_cov, Hit, PendingVisit,
-    ReturnModel, Surface,
+    beam_e, covariates, denoised_ranges_m, observation_along, release_visit, visit_nav_cov, Hit,
+    PendingVisit, ReturnModel, Surface,
 };
 use crate::app::diagnose::model::{Covariates, Observation, Visit, N_EFFECTS};
 use crate::geo::ellipsoid::{geodetic_to_ecef, r_enu_to_e, Geodetic};
@@ -100,7 +100,7 @@ pub(super) fn observe_target(
     pv: &PendingVisit,
     opts: &DiagnoseConfig,
 ) -> Result<Option<TargetVisit>> {
-    let ids = (0, 0);
+    let ids = (0, 0, pv.hits[0].index);
     let returns = locate_all(model, file, &pv.hits)?;
     let n = returns.len() as f64;
     let mean = returns.iter().map(|r| r.loc.x_e).sum::<Vector3<f64>>() / n;
@@ -150,13 +150,16 @@ pub(super) fn observe_target(
 
 fn locate_all(model: &ReturnModel, file: &ProfileFile, hits: &[Hit]) -> Result<Vec<OnTarget>> {
     let mut cursor = model.cursor();
-    hits.iter()
+    let returns = hits
+        .iter()
         .map(|h| {
             let (raw, loc) = model.relocate(file, h.index, &mut cursor)?;
             let range_m = raw.range_m;
             Ok(OnTarget { raw, loc, range_m })
         })
-        .collect()
+        .collect();
+    release_visit(file, hits);
+    returns
 }
 
 /// The unit normal of the least-squares plane through the returns and their rms distance
@@ -258,7 +261,7 @@ fn centroid(
     model: &ReturnModel,
     axis: &Vector3<f64>,
     centre: &Vector3<f64>,
-    ids: (usize, usize),
+    ids: (usize, usize, usize),
     cov: Covariates,
     extra_var: f64,
 ) -> Observation {
@@ -266,6 +269,7 @@ fn centroid(
     let mut sum = Observation {
         reference: ids.0,
         visit: ids.1,
+        record: ids.2,
         residual_m: 0.0,
         var_white_m2: 0.0,
         nav_gradient: [0.0; 6],

@@ -51,6 +51,10 @@ pub struct GapBeforeAfter {
     pub before: GapMetrics,
     /// Re-processed with the estimate (or after the model-free correction; or as before).
     pub after: GapMetrics,
+    /// Both over the same returns: re-processed, the held-out returns both observations
+    /// found (matched by pass and record, docs/diagnosis.md "Reading the report"); false only
+    /// when they share none, each then over its own.
+    pub same_returns: bool,
 }
 
 /// Variance inflation of one effect on this geometry.
@@ -366,9 +370,19 @@ No catalogue effect is named; each would \
                 g.n
             );
         }
+        let returns = if !self.set.is_empty() && self.gap.same_returns {
+            "Before and after are over the same held-out returns: those the survey observed \
+             again with the correction still finds on the references (the tests in the verdict \
+             take each observation's own). "
+        } else if self.gap.same_returns {
+            ""
+        } else {
+            "The survey observed again shares no held-out return with the first observation: \
+             before and after are each over its own. "
+        };
         let _ = writeln!(
             s,
-            "\nAn honest model gives chi2/dof near 1 and 95% coverage near 95%.\n"
+            "\n{returns}An honest model gives chi2/dof near 1 and 95% coverage near 95%.\n"
         );
         self.write_nuisance(&mut s);
         if self.verdict == Verdict::None {
