@@ -184,11 +184,17 @@ impl ProfileFile {
     /// Refuses a file whose mirror angles look like degrees: a finite `beta_rad` beyond 2 pi
     /// among up to [`ANGLE_SAMPLE_RECORDS`] records evenly spread over the file (every record
     /// of a smaller file), naming the file and the first such record. Non-finite values are
-    /// left to the run's counts (rejected as non-finite).
+    /// left to the run's counts (rejected as non-finite). Each sampled record's pages are
+    /// released once read: a sample faults in its neighbours too (fault-around, large folios),
+    /// and the samples of a large file would otherwise leave nearly all of it resident
+    /// (1.15 GB of a 1.2 GB file at 3e7 returns).
     pub fn check_angles(&self) -> Result<()> {
         let step = self.len().div_ceil(ANGLE_SAMPLE_RECORDS).max(1);
         for i in (0..self.len()).step_by(step) {
             let beta = self.get(i).beta_rad;
+            if step > 1 {
+                self.release(i..i + 1);
+            }
             if let Some(problem) = beta.is_finite().then(|| beta_in_degrees(beta)).flatten() {
                 return Err(Error::bad_record(
                     self.path(),
