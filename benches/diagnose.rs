@@ -97,11 +97,12 @@ fn large_case(reps: usize) {
         let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
         let d = tmp.path();
         let text = kinescan::app::demo::SCENARIO.to_string() + LARGE_EFFECTS;
-        let mut sc = Scenario::parse(&text, "city block, large").unwrap();
-        // The scenario's own duration: `simulate_scenario` does not read `SimOptions::duration_s`
-        // (only `simulate`, the command, does).
-        sc.duration_s = n as f64 / CITY_BLOCK_RETURNS_PER_S;
-        let s = simulate_scenario(&sc, &d.join("survey"), &SimOptions::default()).unwrap();
+        let sc = Scenario::parse(&text, "city block, large").unwrap();
+        let opts = SimOptions {
+            duration_s: Some(n as f64 / CITY_BLOCK_RETURNS_PER_S),
+            ..Default::default()
+        };
+        let s = simulate_scenario(&sc, &d.join("survey"), &opts).unwrap();
         std::fs::write(d.join("pipeline.toml"), kinescan::app::demo::PIPELINE).unwrap();
         let (mut run, mut diag) = (Vec::new(), Vec::new());
         for _ in 0..reps {

@@ -114,20 +114,27 @@ pub mod files {
 
 /// Simulates the survey described by `scenario_path` into `out_dir` (created if missing).
 pub fn simulate(scenario_path: &Path, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
-    let mut sc = Scenario::load(scenario_path)?;
+    let sc = Scenario::load(scenario_path)?;
     crate::io::paths::check_collisions(
         &[("scenario file".into(), scenario_path.to_path_buf())],
         &crate::io::paths::in_out_dir(out_dir, &files::ALL),
     )?;
-    if let Some(d) = opts.duration_s {
-        sc.duration_s = d;
-        sc.validate("--duration-s")?;
-    }
     simulate_scenario(&sc, out_dir, opts)
 }
 
-/// Simulates an already loaded scenario (see [`simulate`]).
+/// Simulates an already loaded scenario (see [`simulate`]), for `opts.duration_s` when given.
 pub fn simulate_scenario(sc: &Scenario, out_dir: &Path, opts: &SimOptions) -> Result<SimSummary> {
+    let scaled;
+    let sc = match opts.duration_s {
+        Some(d) => {
+            let mut s = sc.clone();
+            s.duration_s = d;
+            s.validate("--duration-s")?;
+            scaled = s;
+            &scaled
+        }
+        None => sc,
+    };
     match opts.threads {
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)

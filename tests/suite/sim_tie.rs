@@ -109,3 +109,34 @@ fn bad_scenarios_are_refused_with_the_key_named() {
         assert!(msg.starts_with("bad.toml"), "{msg}");
     }
 }
+
+/// `SimOptions::duration_s` replaces the duration of an already loaded scenario too, not only
+/// of one `simulate` loads (a bench once got the scenario's own length for every size it asked
+/// for): the same survey as the scenario edited to that duration, profile for profile and
+/// return for return; a bad duration is refused naming the option.
+#[test]
+fn the_duration_option_replaces_a_loaded_scenario_s() {
+    use kinescan::sim::{simulate_scenario, SimOptions};
+    let dir = tempfile::tempdir().unwrap();
+    let sc = sim_support::base();
+    let opts = |d: f64| SimOptions {
+        duration_s: Some(d),
+        ..Default::default()
+    };
+    let half_s = sc.duration_s / 2.0;
+    let short = simulate_scenario(&sc, &dir.path().join("a"), &opts(half_s)).unwrap();
+    let mut edited = sc.clone();
+    edited.duration_s = half_s;
+    let by_hand =
+        simulate_scenario(&edited, &dir.path().join("c"), &SimOptions::default()).unwrap();
+    let full = simulate_scenario(&sc, &dir.path().join("d"), &SimOptions::default()).unwrap();
+    assert_eq!(
+        (short.profiles, short.returns),
+        (by_hand.profiles, by_hand.returns)
+    );
+    assert!(short.profiles < full.profiles, "{short:?} {full:?}");
+    let e = simulate_scenario(&sc, &dir.path().join("b"), &opts(-1.0))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("--duration-s"), "{e}");
+}
