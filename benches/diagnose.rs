@@ -153,7 +153,11 @@ fn run_once(dir: &Path) -> (f64, f64) {
     let wall = started.elapsed().as_secs_f64();
     let report = std::fs::read(dir.join("out/city_block.report.json")).unwrap();
     let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
-    let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
+    let rss = report["peak_rss_bytes"]
+        .as_u64()
+        .expect("the run report has no peak_rss_bytes (no /proc/self/status here)")
+        as f64
+        / 1e6;
     (wall, rss)
 }
 

@@ -175,7 +175,11 @@ fn run_once(dir: &Path, file: &str, threads: usize) -> (f64, f64, f64) {
     let report = std::fs::read(dir.join("out/cloud.report.json")).unwrap();
     let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
     let rps = report["returns_per_second"].as_f64().unwrap();
-    let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
+    let rss = report["peak_rss_bytes"]
+        .as_u64()
+        .expect("the run report has no peak_rss_bytes (no /proc/self/status here)")
+        as f64
+        / 1e6;
     (rps, wall, rss)
 }
 
@@ -449,7 +453,11 @@ fn tpu_case(dir: &Path, reps: usize) {
         let report = std::fs::read(dir.join("out/tpu.report.json")).unwrap();
         let report: serde_json::Value = serde_json::from_slice(&report).unwrap();
         let pps = report["points_per_second"].as_f64().unwrap();
-        let rss = report["peak_rss_bytes"].as_u64().unwrap_or(0) as f64 / 1e6;
+        let rss = report["peak_rss_bytes"]
+            .as_u64()
+            .expect("the run report has no peak_rss_bytes (no /proc/self/status here)")
+            as f64
+            / 1e6;
         (pps, wall, rss)
     };
     let (mut run, mut tpu) = (Vec::new(), Vec::new());
