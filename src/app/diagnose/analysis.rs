@@ -19,6 +19,9 @@ pub struct Settings {
     pub alpha: f64,
     /// Quantile bins of a continuous covariate.
     pub bins: usize,
+    /// Variance the learned navigation model's sampling error adds to the held-out
+    /// `r^T C^-1 r` (`nuisance::chi2_variance`; 0 with the model known).
+    pub held_out_chi2_var: f64,
 }
 
 impl Default for Settings {
@@ -27,6 +30,7 @@ impl Default for Settings {
             seed: 0,
             alpha: super::select::DEFAULT_ALPHA,
             bins: super::locate::DEFAULT_BINS,
+            held_out_chi2_var: 0.0,
         }
     }
 }
@@ -60,7 +64,7 @@ pub struct Analysis {
 pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
     let split = split(set, settings.seed)?;
     let before = gap(set, &split.held_out, None)?;
-    let selection = select(set, &split, settings.alpha)?;
+    let selection = select(set, &split, settings.alpha, settings.held_out_chi2_var)?;
     let after_linear = selection
         .correction()
         .map(|t| gap(set, &split.held_out, Some(t)))

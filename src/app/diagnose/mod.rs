@@ -105,6 +105,8 @@ struct Statistics {
 struct Learned {
     screening: nuisance::screen::Screening,
     nuisance: nuisance::Nuisance,
+    /// What the model's sampling error adds to the variance of the held-out `r^T C^-1 r`.
+    held_out_chi2_var: f64,
 }
 
 impl Learned {
@@ -126,20 +128,29 @@ impl Learned {
             .nav_tau_s
             .unwrap_or(crate::pipeline::config::START_NAV_TAU_S);
         let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
+        let held_out_chi2_var = nuisance::chi2_variance(&screened, &split.held_out, &nuisance);
         let applied = nuisance::apply(&screened, &nuisance);
         Ok((
             Learned {
                 screening,
                 nuisance,
+                held_out_chi2_var,
             },
             applied,
         ))
     }
 
-    /// The same screening and navigation model on a survey observed again.
-    fn apply(&self, set: &model::ObservationSet) -> model::ObservationSet {
+    /// The same screening and navigation model on a survey observed again, and what the
+    /// model's sampling error adds to the variance of `r^T C^-1 r` on references `held_out`.
+    fn apply(
+        &self,
+        set: &model::ObservationSet,
+        held_out: &[String],
+    ) -> (model::ObservationSet, f64) {
         let (screened, _) = nuisance::screen::screen(set, self.screening.max_foreign_share);
-        nuisance::apply(&screened, &self.nuisance)
+        let refs = confirm::references_of(&screened, held_out);
+        let var = nuisance::chi2_variance(&screened, &refs, &self.nuisance);
+        (nuisance::apply(&screened, &self.nuisance), var)
     }
 }
 
@@ -194,7 +205,7 @@ pub fn run_joint(
     observed.set = set;
     bar.inc(1);
     bar.set_message("testing the catalogue");
-    let mut stats = statistics(&observed.set, &cfg)?;
+    let mut stats = statistics(&observed.set, &cfg, learned.held_out_chi2_var)?;
     bar.inc(1);
     bar.set_message("observing again with the proposed correction");
     let confirmation =
@@ -247,9 +258,9 @@ fn confirm_explanation(
         fit_ids: &fit_ids,
         held_out_ids: &held_out_ids,
     };
-    let prepare = |s: &model::ObservationSet| {
+    let prepare = |s: &model::ObservationSet, held_out: &[String]| {
         bar.inc(1);
-        learned.apply(s)
+        learned.apply(s, held_out)
     };
     let c = confirm::confirm(ps, refs, &cfg, &req.out_dir, &proposal, &prepare)?;
     let holds = !null_rejected || c.p_value >= alpha;
@@ -324,6 +335,10 @@ fn write_outputs(
     let held_out_ids = ids(&stats.held_out);
     let before_normalised = held_out_values(set, &stats.held_out, &stats.normalised);
     let (mut before, mut same_returns) = (stats.before, true);
+    let n_held = stats.before.n;
+    let after_var = confirmation.map_or((learned.held_out_chi2_var, n_held), |c| {
+        (c.after_chi2_var, c.after.n)
+    });
     let (set_lines, after, after_normalised) = match (confirmation, &stats.model_free) {
         (Some(c), _) => {
             let z = locate::normalised_residuals(&c.set, None);
@@ -400,6 +415,8 @@ fn write_outputs(
             .collect(),
         located_in: stats.located_in,
         gap: report::GapBeforeAfter {
+            before_chi2_per_dof_sd: chi2_per_dof_sd(&before, learned.held_out_chi2_var, n_held),
+            after_chi2_per_dof_sd: chi2_per_dof_sd(&after, after_var.0, after_var.1),
             before,
             after,
             same_returns,
@@ -484,8 +501,13 @@ fn output_names() -> Vec<String> {
 }
 
 /// Runs the statistics on `set` ([`analysis::analyse`]) and keeps what the report needs.
-fn statistics(set: &model::ObservationSet, cfg: &DiagnoseConfig) -> Result<Statistics> {
+fn statistics(
+    set: &model::ObservationSet,
+    cfg: &DiagnoseConfig,
+    held_out_chi2_var: f64,
+) -> Result<Statistics> {
     let settings = analysis::Settings {
+        held_out_chi2_var,
         seed: cfg.seed,
         alpha: cfg.alpha,
         bins: locate::DEFAULT_BINS,
@@ -601,6 +623,14 @@ fn model_free_report(m: &locate::Correction) -> report::ModelFreeReport {
         // model's own noise closes all of it).
         closed_fraction: m.closure.unwrap_or(0.0).clamp(0.0, 1.0),
     }
+}
+
+/// The sd of `g.chi2_per_dof` under the null model: `sqrt(2 / n)` with the model known, and
+/// the learned model's sampling error, `extra_var` on the chi-square of `n_full` returns (a
+/// systematic shift: the same per return on a subset of them).
+fn chi2_per_dof_sd(g: &report::GapMetrics, extra_var: f64, n_full: usize) -> f64 {
+    let n_full = n_full.max(1) as f64;
+    (2.0 / g.n.max(1) as f64 + extra_var / (n_full * n_full)).sqrt()
 }
 
 fn gap_metrics(g: &model::metrics::Gap) -> report::GapMetrics {

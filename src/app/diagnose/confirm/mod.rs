@@ -6,7 +6,7 @@
 //! observation, not on a linear prediction of it.
 
 use super::model::fit::Normals;
-use super::model::metrics::{chi2_sf, gap, Gap};
+use super::model::metrics::{chi2_sf_spread, gap, Gap};
 use super::model::{Effect, ObservationSet};
 use super::observe::{self, References};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
@@ -21,6 +21,10 @@ pub mod reprocess;
 pub const SETTLED_SIGMA: f64 = 0.1;
 /// Most rounds of correction and observation (each re-processes the survey).
 pub const MAX_ROUNDS: usize = 3;
+
+/// The diagnosis' screening and navigation model applied to a survey observed again, and the
+/// variance the model's sampling error adds to `r^T C^-1 r` on the held-out references named.
+pub type Prepare<'a> = dyn Fn(&ObservationSet, &[String]) -> (ObservationSet, f64) + 'a;
 
 /// What to apply and where to judge it.
 pub struct Proposal<'a> {
@@ -44,21 +48,24 @@ pub struct Confirmation {
     /// The last observation (screened, navigation model applied) and its held-out references.
     pub set: ObservationSet,
     pub held_out: Vec<usize>,
-    /// Held-out gap there, and `P(chi2_n > chi2)` of it.
+    /// Held-out gap there, the variance the learned navigation model's sampling error adds to
+    /// its `r^T C^-1 r`, and the p-value of that under the model (`chi2_sf_spread`).
     pub after: Gap,
+    pub after_chi2_var: f64,
     pub p_value: f64,
 }
 
 /// Applies `proposal` to every pipeline of `ps` (the surveys of one mount, diagnosed jointly),
-/// observes `refs` again (`prepare`: the diagnosis' screening and navigation model) until the
-/// estimate settles, and returns the last observation's gap.
+/// observes `refs` again (`prepare`: the diagnosis' screening and navigation model, and the
+/// variance its sampling error adds to the chi-square on the held-out references named) until
+/// the estimate settles, and returns the last observation's gap.
 pub fn confirm(
     ps: &[LoadedPipeline],
     refs: &References,
     cfg: &DiagnoseConfig,
     out_dir: &Path,
     proposal: &Proposal,
-    prepare: &dyn Fn(&ObservationSet) -> ObservationSet,
+    prepare: &Prepare,
 ) -> Result<Confirmation> {
     let effects: Vec<Effect> = proposal.applied.iter().map(|(e, _)| *e).collect();
     let mut applied = proposal.applied.clone();
@@ -74,7 +81,8 @@ pub fn confirm(
             .zip(&set_lines)
             .map(|(p, lines)| reprocess::corrected(p, lines, out_dir))
             .collect::<Result<Vec<_>>>()?;
-        let set = prepare(&observe::observe_joint(&corrected, refs, cfg)?.set);
+        let observed = observe::observe_joint(&corrected, refs, cfg)?.set;
+        let (set, after_chi2_var) = prepare(&observed, proposal.held_out_ids);
         let fit_refs = references_of(&set, proposal.fit_ids);
         let refit = Normals::of(&set, &fit_refs)?.fit(&effects)?;
         let last_move_sigma = refit
@@ -87,7 +95,8 @@ pub fn confirm(
         if last_move_sigma < SETTLED_SIGMA || rounds == MAX_ROUNDS {
             let held_out = references_of(&set, proposal.held_out_ids);
             let after = gap(&set, &held_out, None)?;
-            let p_value = chi2_sf(after.chi2_per_dof * after.n as f64, after.n);
+            let p_value =
+                chi2_sf_spread(after.chi2_per_dof * after.n as f64, after.n, after_chi2_var);
             return Ok(Confirmation {
                 applied,
                 set_lines,
@@ -97,6 +106,7 @@ pub fn confirm(
                 set,
                 held_out,
                 after,
+                after_chi2_var,
                 p_value,
             });
         }

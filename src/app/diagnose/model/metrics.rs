@@ -161,6 +161,18 @@ pub fn chi2_sf(x: f64, k: usize) -> f64 {
     ln_chi2_sf(x, k).exp()
 }
 
+/// `P(X > x)` for `X = c chi2_nu` with mean `n` and variance `2 n + extra_var` (Satterthwaite's
+/// scaled chi-square): the held-out statistic `r^T C^-1 r` of `n` returns under a navigation
+/// model learned with a sampling error that adds `extra_var` to its variance
+/// (`nuisance::chi2_variance`); [`chi2_sf`] when `extra_var` is 0.
+pub fn chi2_sf_spread(x: f64, n: usize, extra_var: f64) -> f64 {
+    if n == 0 {
+        return 1.0;
+    }
+    let c = 1.0 + extra_var.max(0.0) / (2.0 * n as f64);
+    ln_gamma_q(0.5 * n as f64 / c, 0.5 * (x / c).max(0.0)).exp()
+}
+
 /// `P(Z > z)` for a standard normal `Z`.
 pub fn normal_sf(z: f64) -> f64 {
     let tail = 0.5 * ln_gamma_q(0.5, 0.5 * z * z).exp();
@@ -216,6 +228,10 @@ mod tests {
         assert!((chi2_sf(3.841_458_82, 1) - 0.05).abs() < 1e-9);
         assert!((chi2_sf(23.209_251, 10) - 0.01).abs() < 1e-8);
         assert!((chi2_sf(1100.0, 1000) - 0.014_614_408_126).abs() < 1e-9);
+        // The spread form: chi2_n itself without extra variance; with 2n more, X = 2 chi2_{n/2}.
+        assert_eq!(chi2_sf_spread(1100.0, 1000, 0.0), chi2_sf(1100.0, 1000));
+        let doubled = chi2_sf_spread(2.0 * 550.0, 1000, 2000.0);
+        assert!((doubled - chi2_sf(550.0, 500)).abs() < 1e-12, "{doubled}");
         // Far tail: ln P(chi2_1 > 2000) = ln erfc(sqrt(1000)) ~ -1000 - ln(sqrt(1000 pi)).
         let expected = -1000.0 - (1000.0 * std::f64::consts::PI).sqrt().ln();
         assert!((ln_chi2_sf(2000.0, 1) - expected).abs() < 1e-3);

@@ -51,6 +51,11 @@ pub struct GapBeforeAfter {
     pub before: GapMetrics,
     /// Re-processed with the estimate (or after the model-free correction; or as before).
     pub after: GapMetrics,
+    /// The sd of `before.chi2_per_dof` and `after.chi2_per_dof` under a model that holds:
+    /// `sqrt(2 / n)` for a known model, widened by the learned navigation model's sampling
+    /// error (docs/diagnosis.md, "The nuisance").
+    pub before_chi2_per_dof_sd: f64,
+    pub after_chi2_per_dof_sd: f64,
     /// Both over the same returns: re-processed, the held-out returns both observations
     /// found (matched by pass and record, docs/diagnosis.md "Reading the report"); false only
     /// when they share none, each then over its own.

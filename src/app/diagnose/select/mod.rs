@@ -6,7 +6,7 @@
 
 use self::observability::{observability_of, Group, Observability};
 use super::model::fit::{Fit, Normals, Split};
-use super::model::metrics::{chi2_sf, holm_adjusted, normal_sf};
+use super::model::metrics::{chi2_sf, chi2_sf_spread, holm_adjusted, normal_sf};
 use super::model::{Effect, ObservationSet, Theta};
 use crate::Result;
 
@@ -81,15 +81,16 @@ pub struct NullTest {
     pub chi2: f64,
     /// Held-out returns (degrees of freedom).
     pub n: usize,
-    /// `P(chi2_n > chi2)`.
+    /// `P(chi2 exceeded)` under the null model: `chi2_n`, its variance widened by what the
+    /// learned navigation model's sampling error adds (`metrics::chi2_sf_spread`).
     pub p_value: f64,
     /// `p_value < alpha`.
     pub rejected: bool,
 }
 
 impl NullTest {
-    fn new(chi2: f64, n: usize, alpha: f64) -> Self {
-        let p_value = chi2_sf(chi2, n);
+    fn new(chi2: f64, n: usize, alpha: f64, extra_var: f64) -> Self {
+        let p_value = chi2_sf_spread(chi2, n, extra_var);
         NullTest {
             chi2,
             n,
@@ -284,13 +285,20 @@ fn extend(
 }
 
 /// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
-/// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default).
-pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selection> {
+/// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default); the held-out chi-square
+/// tests with `held_out_chi2_var` added to their variance (the learned navigation model's
+/// sampling error, `nuisance::chi2_variance`; 0 with the model known).
+pub fn select(
+    set: &ObservationSet,
+    split: &Split,
+    alpha: f64,
+    held_out_chi2_var: f64,
+) -> Result<Selection> {
     let fit_n = Normals::of(set, &split.fit)?;
     let held = Normals::of(set, &split.held_out)?;
     let observability = observability_of(&fit_n, &Effect::ALL);
     let null_chi2 = held.chi2_null();
-    let null = NullTest::new(null_chi2, held.n, alpha);
+    let null = NullTest::new(null_chi2, held.n, alpha, held_out_chi2_var);
     let cx = Context {
         fit: &fit_n,
         held: &held,
@@ -308,7 +316,7 @@ pub fn select(set: &ObservationSet, split: &Split, alpha: f64) -> Result<Selecti
     };
     let remaining = chosen
         .as_ref()
-        .map(|c| NullTest::new(c.chi2_held_out, held.n, alpha));
+        .map(|c| NullTest::new(c.chi2_held_out, held.n, alpha, held_out_chi2_var));
     // A rejected gap is closed only when what the explanation leaves passes the same test: a
     // right explanation leaves its estimation error alone (about k of chi2).
     let closes = remaining.is_some_and(|r| !r.rejected);
