@@ -120,18 +120,20 @@ pub struct Reobserved {
     /// Held-out chi-square and returns.
     pub chi2: f64,
     pub n: usize,
-    /// `P(chi2_n > chi2)`.
+    /// `P(chi2 exceeded)` under the model, its sampling error included
+    /// (`metrics::chi2_sf_spread`).
     pub p_value: f64,
     /// Rounds of correction and observation.
     pub rounds: usize,
 }
 
 /// The share of the held-out excess chi-square removed, in words; bounded: a gap that was
-/// not significantly above the model's (chi2/dof - 1 within 3 of its sd `sqrt(2 / n)`) has
-/// no share to close, and an after-gap at or below 1 closes all of it.
-pub fn closure_words(before_chi2_per_dof: f64, after_chi2_per_dof: f64, n: usize) -> String {
+/// not significantly above the model's (chi2/dof - 1 within 3 of its sd `sd_per_dof`:
+/// `sqrt(2 / n)`, widened by the learned model's sampling error) has no share to close, and an
+/// after-gap at or below 1 closes all of it.
+pub fn closure_words(before_chi2_per_dof: f64, after_chi2_per_dof: f64, sd_per_dof: f64) -> String {
     let excess = before_chi2_per_dof - 1.0;
-    let significant = excess > 3.0 * (2.0 / n.max(1) as f64).sqrt();
+    let significant = excess > 3.0 * sd_per_dof;
     if !significant {
         return "no significant held-out excess to close".to_string();
     }
@@ -184,7 +186,9 @@ pub fn reason(
     };
     let null_dof = sel.null.chi2 / sel.null.n as f64;
     let closing = |after_chi2: f64, after_n: usize| {
-        closure_words(null_dof, after_chi2 / after_n as f64, sel.null.n)
+        let n = sel.null.n.max(1) as f64;
+        let sd_per_dof = (2.0 * n + sel.null.extra_var).sqrt() / n;
+        closure_words(null_dof, after_chi2 / after_n as f64, sd_per_dof)
     };
     let again = reobserved.map(|r| {
         format!(

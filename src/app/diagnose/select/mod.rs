@@ -81,6 +81,8 @@ pub struct NullTest {
     pub chi2: f64,
     /// Held-out returns (degrees of freedom).
     pub n: usize,
+    /// Variance the learned navigation model's sampling error adds to `chi2` (0: known).
+    pub extra_var: f64,
     /// `P(chi2 exceeded)` under the null model: `chi2_n`, its variance widened by what the
     /// learned navigation model's sampling error adds (`metrics::chi2_sf_spread`).
     pub p_value: f64,
@@ -94,6 +96,7 @@ impl NullTest {
         NullTest {
             chi2,
             n,
+            extra_var,
             p_value,
             rejected: p_value < alpha,
         }
