@@ -600,8 +600,14 @@ fn statistics(
                 model::fit::Normals::of(set, &a.split.fit)?,
                 model::fit::Normals::of(set, &a.split.held_out)?,
             );
-            let g = obs.groups.len();
-            select::power::detectable(&fit_n, &held_n, cfg.alpha, g + g * (g - 1) / 2)
+            select::power::detectable(
+                &model::Effect::ALL,
+                &fit_n,
+                &held_n,
+                &obs.groups,
+                cfg.alpha,
+                cfg.seed,
+            )
         },
         analysis: a,
     })

@@ -281,7 +281,13 @@ impl Normals {
 
     /// GLS fit of `effects`; an error when they cannot be separated on these references.
     pub fn fit(&self, effects: &[Effect]) -> Result<Fit> {
-        let (n, b) = self.system(effects);
+        Ok(self.fit_with(effects, self.covariance(effects)?))
+    }
+
+    /// The covariance of a GLS fit of `effects`, `(S^T C^-1 S)^-1`: what does not depend on
+    /// the residuals; an error when they cannot be separated on these references.
+    pub fn covariance(&self, effects: &[Effect]) -> Result<DMatrix<f64>> {
+        let (n, _) = self.system(effects);
         let names = || {
             effects
                 .iter()
@@ -310,19 +316,26 @@ impl Normals {
                 )
             })?;
         let scaled_inv = chol.inverse();
-        let cov = DMatrix::from_fn(n.nrows(), n.ncols(), |i, j| {
+        Ok(DMatrix::from_fn(n.nrows(), n.ncols(), |i, j| {
             scaled_inv[(i, j)] * d[i] * d[j]
-        });
+        }))
+    }
+
+    /// The GLS fit of `effects` with `cov` their [`Self::covariance`] (on these normals, or on
+    /// others with the same signatures: only the residual column may differ).
+    pub fn fit_with(&self, effects: &[Effect], cov: DMatrix<f64>) -> Fit {
+        let c = Self::columns(effects);
+        let b = DVector::from_fn(c.len(), |i, _| self.m[(c[i], N_EFFECTS)]);
         let estimate = &cov * &b;
         let chi2 = (self.chi2_null() - b.dot(&estimate)).max(0.0);
-        Ok(Fit {
+        Fit {
             effects: effects.to_vec(),
             sigma: cov.diagonal().iter().map(|v| v.sqrt()).collect(),
             estimate: estimate.iter().copied().collect(),
             cov,
             chi2,
             dof: self.n.saturating_sub(effects.len()),
-        })
+        }
     }
 }
 

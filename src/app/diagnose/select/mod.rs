@@ -9,6 +9,9 @@ use super::model::fit::{Fit, Normals, Split};
 use super::model::metrics::{chi2_sf, chi2_sf_spread, holm_adjusted, normal_sf};
 use super::model::{Effect, ObservationSet, Theta};
 use crate::Result;
+use nalgebra::DMatrix;
+use std::cell::RefCell;
+use std::collections::HashMap;
 
 pub mod observability;
 pub mod power;
@@ -154,22 +157,53 @@ impl Selection {
     }
 }
 
-/// The fit and held-out statistics, the groups, and the model every candidate extends.
+/// The covariance of every fit made on one set of fit references (`None`: inseparable). It
+/// depends on the signatures alone, so that [`power`] runs the selection on many draws of
+/// the residuals with one.
+type Covariances = RefCell<HashMap<Vec<Effect>, Option<DMatrix<f64>>>>;
+
+/// The fit and held-out statistics, the groups, and the covariances of the fits made.
 struct Context<'a> {
     fit: &'a Normals,
     held: &'a Normals,
     groups: &'a [Group],
+    covariances: &'a Covariances,
 }
 
-impl Context<'_> {
+impl<'a> Context<'a> {
+    fn new(
+        fit: &'a Normals,
+        held: &'a Normals,
+        groups: &'a [Group],
+        covariances: &'a Covariances,
+    ) -> Self {
+        Context {
+            fit,
+            held,
+            groups,
+            covariances,
+        }
+    }
+
     fn effects(&self, groups: &[usize]) -> Vec<Effect> {
         groups.iter().map(|&g| self.groups[g].members[0]).collect()
+    }
+
+    /// The GLS fit of `effects` on the fit references; `None` when inseparable.
+    fn fit_of(&self, effects: &[Effect]) -> Option<Fit> {
+        let cov = self
+            .covariances
+            .borrow_mut()
+            .entry(effects.to_vec())
+            .or_insert_with(|| self.fit.covariance(effects).ok())
+            .clone()?;
+        Some(self.fit.fit_with(effects, cov))
     }
 
     /// Fits `groups` on the fit references and judges them on the held-out ones against
     /// `base` (the explanation they extend: `None` = no effect). `None` when inseparable.
     fn candidate(&self, groups: Vec<usize>, base: Option<&Fit>, p_value: f64) -> Option<Candidate> {
-        let fit = self.fit.fit(&self.effects(&groups)).ok()?;
+        let fit = self.fit_of(&self.effects(&groups))?;
         let chi2_held_out = self.held.chi2_at(&fit.effects, &fit.estimate);
         // The change of the correction relative to the base, in the fit's effect order.
         let delta: Vec<f64> = fit
@@ -287,6 +321,16 @@ fn extend(
     current
 }
 
+/// The selection's search on `cx`: each group alone and every pair, judged under Holm
+/// control; the best supported one extended by greedy additions. Every candidate tried, and
+/// the chosen explanation.
+fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
+    let mut candidates = first_step(cx);
+    let best = judge(&mut candidates, alpha).map(|i| candidates[i].clone());
+    let chosen = best.map(|b| extend(cx, b, alpha, &mut candidates));
+    (candidates, chosen)
+}
+
 /// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
 /// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default); the held-out chi-square
 /// tests with `held_out_chi2_var` added to their variance (the learned navigation model's
@@ -302,14 +346,9 @@ pub fn select(
     let observability = observability_of(&fit_n, &Effect::ALL);
     let null_chi2 = held.chi2_null();
     let null = NullTest::new(null_chi2, held.n, alpha, held_out_chi2_var);
-    let cx = Context {
-        fit: &fit_n,
-        held: &held,
-        groups: &observability.groups,
-    };
-    let mut candidates = first_step(&cx);
-    let best = judge(&mut candidates, alpha).map(|i| candidates[i].clone());
-    let chosen = best.map(|b| extend(&cx, b, alpha, &mut candidates));
+    let covariances = Covariances::default();
+    let cx = Context::new(&fit_n, &held, &observability.groups, &covariances);
+    let (mut candidates, chosen) = choose(&cx, alpha);
     candidates.sort_by(|a, b| b.held_out_reduction.total_cmp(&a.held_out_reduction));
 
     let excess = null_chi2 - held.n as f64;
