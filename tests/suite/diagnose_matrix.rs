@@ -15,8 +15,9 @@
 //!
 //! The full matrix is 9 x 2 x 2 cells of 48 cases x 5 seeds: hours on 2 cores. `cargo test`
 //! skips it (`#[ignore]`); CI runs a fixed sample (3 models, foreign off and on, one lap, no
-//! effect, boresight_x at 2 D and 0.4 D, the cyclic range error, 3 seeds: 78 diagnoses, a few
-//! minutes), and the full table is made by
+//! effect, attitude latency, boresight_x and range zero at 2 D, D and 0.4 D, the cyclic range
+//! error, 5 seeds: 330 diagnoses, about 6 minutes; a 90% line is then decided by 90 cases, not
+//! by one), and the full table is made by
 //! `KINESCAN_MATRIX=full cargo test --release --test suite -- --ignored diagnosis_matrix
 //! --nocapture` (docs/diagnosis.md). Environment: `KINESCAN_MATRIX_MODELS`,
 //! `KINESCAN_MATRIX_FOREIGN` (`off,on`), `KINESCAN_MATRIX_LENGTHS` (`lap,survey`),
@@ -244,7 +245,7 @@ fn diagnose_case(text: &str, length: &str, seed: u64) -> Option<Diagnosis> {
 /// Prints one diagnosis of the matrix.
 fn print_outcome(label: &str, size: f64, seed: u64, d: &Diagnosis, expect: &Expect) {
     println!(
-        "  {label} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} (sd {:.3}, n {}) -> {:.3} (sd {:.3}) located {:?} nav tau {:.0}/{:.0} s scale {:.2}/{:.2} foreign {}",
+        "  {label} x{size} seed {seed}: {} {:?} est {:?} sigma {:?} chi2/dof {:.3} (sd {:.3}, n {}) -> {:.3} (sd {:.3}) located {:?} nav tau {:.0}/{:.0} s scale {:.2}/{:.2} (log sd {}) foreign {}",
         serde_json::to_string(&d.verdict).unwrap(),
         d.effects,
         d.estimate,
@@ -259,6 +260,14 @@ fn print_outcome(label: &str, size: f64, seed: u64, d: &Diagnosis, expect: &Expe
         d.nuisance.attitude_tau_s.value,
         d.nuisance.position_scale.value,
         d.nuisance.attitude_scale.value,
+        [
+            &d.nuisance.position_tau_s,
+            &d.nuisance.attitude_tau_s,
+            &d.nuisance.position_scale,
+            &d.nuisance.attitude_scale,
+        ]
+        .map(|p| p.sigma.map_or("-".into(), |s| format!("{:.2}", s / p.value)))
+        .join("/"),
         d.foreign.set_aside,
     );
     if let Expect::Effects(truth) = expect {
@@ -350,8 +359,9 @@ const NOT_YET_MET: [&str; 3] = [
     // 0.021), and its boresight cases with it.
     "none",
     "named at 2 D",
-    // With each survey's own `D`: 69% of 72 on four models (seeds 1-3) and 81% of 90 over 30
-    // seeds of "two gm" (docs/diagnosis.md, *The matrix*).
+    // One lap, each survey's own `D`, 8 models: 90% of 701 over 30 seeds with foreign returns
+    // off, 85% of 468 over 20 seeds with them on; rw+white and the 15-minute cells fail or are
+    // not measured (docs/diagnosis.md, *The matrix*).
     "named at D",
 ];
 
@@ -448,17 +458,32 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
     need(out_ok, out.len(), 0.90, "unexplained");
     need(out_located, out.len(), 0.90, "located");
     // `detectable` honest: named in 85-95% at D; a band of 10 points needs about 50
-    // diagnoses to be told from its edges (binomial sd 4%), so fewer are printed only. Cells
-    // share each seed's scanner noise: independent draws are (effect, seed) pairs.
-    if at_d.len() >= 50 {
+    // independent draws to be told from its edges (binomial sd 4%). Cells share each seed's
+    // noise (a seed that misses at D misses in every cell: CI's sample holds 90 cases at D but
+    // 15 (effect, seed) pairs), so the band is judged once 50 distinct pairs are pooled, and
+    // fewer are printed only.
+    let pairs: std::collections::BTreeSet<(&str, u64)> =
+        at_d.iter().map(|o| (o.case.as_str(), o.seed)).collect();
+    if !at_d.is_empty() {
+        println!(
+            "{label}: named at D {} over {} (effect, seed) pairs",
+            rate(at_d_named, at_d.len()),
+            pairs.len()
+        );
+    }
+    if pairs.len() >= 50 {
         let r = at_d_named as f64 / at_d.len() as f64;
         if !(0.85..=0.95).contains(&r) {
             let line = format!(
-                "{label}: named at D {} outside 85-95%",
-                rate(at_d_named, at_d.len())
+                "{label}: named at D {} outside 85-95% ({} pairs)",
+                rate(at_d_named, at_d.len()),
+                pairs.len()
             );
-            assert!(NOT_YET_MET.contains(&"named at D"));
-            println!("NOT MET (known, not asserted): {line}");
+            if NOT_YET_MET.contains(&"named at D") {
+                println!("NOT MET (known, not asserted): {line}");
+            } else {
+                fail.push(line);
+            }
         }
     }
     fail
@@ -483,15 +508,14 @@ fn diagnosis_matrix() {
         &["lap", "survey"],
         if full { &["lap", "survey"] } else { &["lap"] },
     );
-    let default_sizes: &[&str] = if full {
-        &["2", "1", "0.4"]
-    } else {
-        &["2", "0.4"]
-    };
-    let sizes: Vec<f64> = selected("KINESCAN_MATRIX_SIZES", &["2", "1", "0.4"], default_sizes)
-        .iter()
-        .map(|s| s.parse().unwrap())
-        .collect();
+    let sizes: Vec<f64> = selected(
+        "KINESCAN_MATRIX_SIZES",
+        &["2", "1", "0.4"],
+        &["2", "1", "0.4"],
+    )
+    .iter()
+    .map(|s| s.parse().unwrap())
+    .collect();
     let all_cases: Vec<Case> = catalogue_cases()
         .into_iter()
         .chain(other_cases())
@@ -501,7 +525,13 @@ fn diagnosis_matrix() {
     let default_cases: Vec<&str> = if full {
         labels.clone()
     } else {
-        vec!["none", "boresight_x_deg", "out: range_cyclic"]
+        vec![
+            "none",
+            "attitude_latency_s",
+            "boresight_x_deg",
+            "range_zero_m",
+            "out: range_cyclic",
+        ]
     };
     let picked = selected("KINESCAN_MATRIX_EFFECTS", &labels, &default_cases);
     let cases: Vec<Case> = all_cases
@@ -512,7 +542,7 @@ fn diagnosis_matrix() {
     let seeds: u64 = std::env::var("KINESCAN_MATRIX_SEEDS")
         .ok()
         .and_then(|v| v.parse().ok())
-        .unwrap_or(if full { 5 } else { 3 });
+        .unwrap_or(5);
     let mut outcomes = Vec::new();
     for m in NAV_MODELS.iter().filter(|m| models.contains(&m.label)) {
         for f in &foreign {

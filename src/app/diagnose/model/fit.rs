@@ -90,7 +90,7 @@ impl BlockGram {
 
 /// `L` with `Sigma = L L^T`: Cholesky after a jitter of 1e-12 of the largest variance, else
 /// the eigen-decomposition with null directions dropped.
-fn sigma_sqrt(sigma: DMatrix<f64>) -> DMatrix<f64> {
+pub(crate) fn sigma_sqrt(sigma: DMatrix<f64>) -> DMatrix<f64> {
     let n = sigma.nrows();
     let max = sigma.diagonal().max();
     if max <= 0.0 {
