@@ -231,10 +231,44 @@ pub fn detectable(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::app::diagnose::model::fit::split;
+    use crate::app::diagnose::model::fit::{split, Split};
     use crate::app::diagnose::model::synthetic::{draw, fill_residuals, Scenario};
+    use crate::app::diagnose::model::ObservationSet;
     use crate::app::diagnose::select::observability::observability_of;
-    use crate::app::diagnose::select::{select, Verdict, DEFAULT_ALPHA};
+    use crate::app::diagnose::select::{select, Selection, Verdict, DEFAULT_ALPHA};
+
+    /// What one survey gives the tests: the normals of its halves, its groups and the
+    /// `detectable` of one effect (`d`).
+    struct Halves {
+        fit: Normals,
+        held: Normals,
+        groups: Vec<Group>,
+        d: f64,
+    }
+
+    /// [`Halves`] of `set` split by `sp`, for `effect`.
+    fn detectable_of(set: &ObservationSet, sp: &Split, effect: Effect, seed: u64) -> Halves {
+        let (fit, held) = (
+            Normals::of(set, &sp.fit).unwrap(),
+            Normals::of(set, &sp.held_out).unwrap(),
+        );
+        let groups = observability_of(&fit, &Effect::ALL).groups;
+        let d = detectable(&[effect], &fit, &held, &groups, DEFAULT_ALPHA, seed)[0]
+            .1
+            .expect("every effect has a signature on the synthetic references");
+        Halves {
+            fit,
+            held,
+            groups,
+            d,
+        }
+    }
+
+    /// Whether `sel` names `effect` (or its group).
+    fn names(sel: &Selection, groups: &[Group], effect: Effect) -> bool {
+        let group = groups.iter().find(|g| g.members.contains(&effect)).unwrap();
+        sel.verdict == Verdict::Effect && sel.effects.iter().any(|e| group.members.contains(e))
+    }
 
     /// On sets drawn from the model itself (navigation model known), an effect of the size
     /// `detectable` reports for the draw's own references is named in about 90% of draws;
@@ -253,14 +287,12 @@ mod tests {
             let effect = effects[seed as usize % effects.len()];
             let mut set = draw(&Scenario::default(), seed);
             let sp = split(&set, seed).unwrap();
-            let (fit, held) = (
-                Normals::of(&set, &sp.fit).unwrap(),
-                Normals::of(&set, &sp.held_out).unwrap(),
-            );
-            let groups = observability_of(&fit, &Effect::ALL).groups;
-            let d = detectable(&[effect], &fit, &held, &groups, DEFAULT_ALPHA, seed)[0]
-                .1
-                .expect("every effect has a signature on the synthetic references");
+            let Halves {
+                fit,
+                held,
+                groups,
+                d,
+            } = detectable_of(&set, &sp, effect, seed);
             let g = groups.len();
             let m = (g + g * (g - 1) / 2) as f64;
             let z = (
@@ -275,12 +307,7 @@ mod tests {
             };
             fill_residuals(&mut set, &truth, seed + 1000);
             let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0).unwrap();
-            let group = groups.iter().find(|g| g.members.contains(&effect)).unwrap();
-            if sel.verdict == Verdict::Effect
-                && sel.effects.iter().any(|e| group.members.contains(e))
-            {
-                named += 1;
-            }
+            named += usize::from(names(&sel, &groups, effect));
         }
         let share = named as f64 / seeds as f64;
         let mean_ratio = ratio.iter().sum::<f64>() / ratio.len() as f64;
@@ -295,8 +322,6 @@ mod tests {
     /// noise, its model learned again, names it in about 90% of seeds.
     #[test]
     fn detectable_holds_with_the_navigation_model_learned() {
-        use crate::app::diagnose::model::fit::Split;
-        use crate::app::diagnose::model::ObservationSet;
         use crate::app::diagnose::nuisance::{apply, chi2_variance, estimate, Held};
         let effects = [
             Effect::AttitudeLatency,
@@ -320,14 +345,7 @@ mod tests {
             let base = draw(&scenario, 500 + seed);
             let sp = split(&base, seed).unwrap();
             let (set, _) = learned(&base, &sp);
-            let (fit, held) = (
-                Normals::of(&set, &sp.fit).unwrap(),
-                Normals::of(&set, &sp.held_out).unwrap(),
-            );
-            let groups = observability_of(&fit, &Effect::ALL).groups;
-            let d = detectable(&[effect], &fit, &held, &groups, DEFAULT_ALPHA, seed)[0]
-                .1
-                .expect("every effect has a signature on the synthetic references");
+            let Halves { groups, d, .. } = detectable_of(&set, &sp, effect, seed);
             let mut with = base.clone();
             let truth = Scenario {
                 truth: vec![(effect, d)],
@@ -337,12 +355,7 @@ mod tests {
             let (set, n) = learned(&with, &sp);
             let var = chi2_variance(&with, &sp.held_out, &n);
             let sel = select(&set, &sp, DEFAULT_ALPHA, var).unwrap();
-            let group = groups.iter().find(|g| g.members.contains(&effect)).unwrap();
-            if sel.verdict == Verdict::Effect
-                && sel.effects.iter().any(|e| group.members.contains(e))
-            {
-                named += 1;
-            }
+            named += usize::from(names(&sel, &groups, effect));
         }
         println!("named at detectable: {named}/{seeds}");
         // 60 seeds at 0.9: sd 0.039; 2.5 sd below (above, 2.5 sd reaches 1).
