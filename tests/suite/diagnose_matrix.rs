@@ -405,6 +405,15 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
         .filter(|o| o.size > 0.0 && o.size < 1.0)
         .collect();
     let small_wrong = small.iter().filter(|o| o.wrong_name()).count();
+    // Named beside the truth (its group allowed) at 2 D and D: no line of the issue, printed
+    // so that a correction carrying an effect the survey does not have is seen.
+    let extra = |size: f64| {
+        let named: Vec<&&Outcome> = outcomes
+            .iter()
+            .filter(|o| o.size == size && o.score().is_some_and(|s| s.named_ok))
+            .collect();
+        (named.iter().filter(|o| o.wrong_name()).count(), named.len())
+    };
     let out: Vec<&&Outcome> = outcomes
         .iter()
         .filter(|o| matches!(o.expect, Expect::Unexplained(_)))
@@ -464,6 +473,15 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
     // fewer are printed only.
     let pairs: std::collections::BTreeSet<(&str, u64)> =
         at_d.iter().map(|o| (o.case.as_str(), o.seed)).collect();
+    for size in [2.0, 1.0] {
+        let (k, n) = extra(size);
+        if n > 0 {
+            println!(
+                "{label}: another effect named beside the truth at {size} D: {}",
+                rate(k, n)
+            );
+        }
+    }
     if !at_d.is_empty() {
         println!(
             "{label}: named at D {} over {} (effect, seed) pairs",
