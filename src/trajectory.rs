@@ -223,6 +223,16 @@ impl Trajectory {
         s
     }
 
+    /// The SBET interval GPS time `t` (s) falls in: the index `i` of its first record
+    /// (`t(i) <= t <= t(i + 1)`) and the interpolation weight of record `i + 1`; `None`
+    /// outside the trajectory.
+    pub fn interval_at(&self, t: f64) -> Option<(usize, f64)> {
+        let s = &self.sbet;
+        let i = locate(s.len(), |k| s.time_s(k), usize::MAX, t)?;
+        let (a, b) = (s.time_s(i), s.time_s(i + 1));
+        Some((i, ((t - a) / (b - a)).clamp(0.0, 1.0)))
+    }
+
     /// A cursor for time-ordered queries (cheap; one per thread or chunk).
     pub fn cursor(&self) -> NavCursor<'_> {
         NavCursor {

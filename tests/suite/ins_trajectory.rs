@@ -628,6 +628,10 @@ fn raw_records_to_trajectory_to_run_to_diagnose_give_verdict_none() {
         (dc.nav_position_scale, dc.nav_attitude_scale),
         (Some(1.0), Some(1.0))
     );
+    assert_eq!(
+        (dc.nav_position_white_share, dc.nav_attitude_white_share),
+        (Some(0.0), Some(0.0))
+    );
     let run = kinescan::pipeline::run(&p, &kinescan::pipeline::RunOptions::default()).unwrap();
     let e = kinescan::app::demo::cloud_error(&p, &run, &d.join("survey")).unwrap();
     let [rms, p95, max] = e.error_3d_m;

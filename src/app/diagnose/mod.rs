@@ -123,6 +123,8 @@ impl Learned {
             attitude_tau_s: cfg.nav_attitude_tau_s,
             position_scale: cfg.nav_position_scale,
             attitude_scale: cfg.nav_attitude_scale,
+            position_white_share: cfg.nav_position_white_share,
+            attitude_white_share: cfg.nav_attitude_white_share,
         };
         let start = screened
             .nav_tau_s

@@ -47,6 +47,15 @@ pub struct DiagnoseConfig {
     /// True / SMRMSG sigma of the INS attitude errors. Absent: estimated.
     #[serde(default)]
     pub nav_attitude_scale: Option<f64>,
+    /// Variance of the white position noise per trajectory record (shared by the returns
+    /// between the same records), as a share of the median SMRMSG position variance. Absent:
+    /// estimated.
+    #[serde(default)]
+    pub nav_position_white_share: Option<f64>,
+    /// Variance of the white attitude noise per trajectory record, as a share of the median
+    /// SMRMSG attitude variance. Absent: estimated.
+    #[serde(default)]
+    pub nav_attitude_white_share: Option<f64>,
     /// The navigation error model that `kinescan trajectory` exported with the SBET
     /// (`output.error_model`, docs/trajectory.md): where the four keys above are absent, the
     /// correlation times are fitted to its autocorrelation ([`fit_correlation_time`]) and the
@@ -246,6 +255,9 @@ impl DiagnoseConfig {
         self.nav_attitude_tau_s.get_or_insert(attitude);
         self.nav_position_scale.get_or_insert(1.0);
         self.nav_attitude_scale.get_or_insert(1.0);
+        // The smoother's own model has no white term.
+        self.nav_position_white_share.get_or_insert(0.0);
+        self.nav_attitude_white_share.get_or_insert(0.0);
         Ok(())
     }
 
@@ -266,6 +278,20 @@ impl DiagnoseConfig {
             ("diagnose.nav_attitude_scale", self.nav_attitude_scale),
         ];
         require_positive(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))?;
+        for (key, v) in [
+            (
+                "diagnose.nav_position_white_share",
+                self.nav_position_white_share,
+            ),
+            (
+                "diagnose.nav_attitude_white_share",
+                self.nav_attitude_white_share,
+            ),
+        ] {
+            if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {
+                return Err(refuse(key, format!("must be >= 0, got {v}")));
+            }
+        }
         if !(self.edge_margin_m.is_finite() && self.edge_margin_m >= 0.0) {
             let v = self.edge_margin_m;
             return Err(refuse(

@@ -9,7 +9,10 @@
 //! what the line leaves out (a Brownian bridge, variance `q (t - t_a)(t_b - t) / (t_b - t_a)`
 //! along the return's gradient, `q = 2 s^2 / tau`) is added to the return's independent
 //! variance. A return's residual is then `x theta + h^T u + e`, `u` the knot values
-//! (`h`: the navigation gradient times the two interpolation weights), `e ~ N(0, D)`.
+//! (`h`: the navigation gradient times the two interpolation weights), `e ~ N(0, D)`. `D` is
+//! block diagonal: the white navigation noise of one trajectory record
+//! ([`ObservationSet::nav_white_share`]) is shared by the returns interpolated between the
+//! same two records, whose block is whitened by its Cholesky factor before it is summed.
 //!
 //! The knots of one component form a Markov chain: the prior precision `Q` of `u` is block
 //! tridiagonal (6 x 6 blocks, knots in time order), and so is `M = Q + H^T D^-1 H`, since a
@@ -18,7 +21,7 @@
 //! `p` columns and `K` knots, whatever the survey's length.
 
 use super::design::RowFn;
-use super::{Observation, ObservationSet};
+use super::{white_nav_cov_m2, Observation, ObservationSet};
 use nalgebra::{DMatrix, Matrix6, SMatrix};
 
 /// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
@@ -35,11 +38,15 @@ struct Row<'a> {
     /// Index of its left knot in the sorted knot list, and the weight of the right one.
     knot: usize,
     w: f64,
+    /// Pass and first trajectory record of the returns that share its white navigation noise.
+    group: Option<(usize, usize)>,
 }
 
 /// The knots (grid indices from the set's first return, ascending) the returns on `selected`
-/// touch, each return's left knot and weight, and each knot's sigmas (from the first return
-/// touching it).
+/// touch, the returns grouped by the records they are interpolated between (each group on
+/// the knot interval of its earliest return: a group that straddles a knot extrapolates the
+/// line by at most one record interval, so that the returns sharing white noise share their
+/// knots), and each knot's sigmas (from the first return touching it).
 fn knots<'a>(
     set: &'a ObservationSet,
     selected: &[bool],
@@ -49,31 +56,37 @@ fn knots<'a>(
         .iter()
         .map(|o| o.covariates.time_s)
         .fold(f64::INFINITY, f64::min);
-    let grid = |t: f64| ((t - t0) / KNOT_S).floor() as i64;
-    let mut idx: Vec<i64> = set
+    let grid = |o: &Observation| (o.covariates.time_s - t0) / KNOT_S;
+    let mut rows: Vec<Row> = set
         .observations
         .iter()
         .filter(|o| selected[o.reference])
-        .flat_map(|o| {
-            let i = grid(o.covariates.time_s);
-            [i, i + 1]
+        .map(|o| Row {
+            o,
+            knot: 0,
+            w: 0.0,
+            group: o.nav_record.map(|r| (o.covariates.pass, r.index)),
         })
         .collect();
+    rows.sort_by_key(|r| r.group);
+    let mut left = Vec::with_capacity(rows.len());
+    for g in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
+        let first = g.iter().map(|r| grid(r.o)).fold(f64::INFINITY, f64::min);
+        left.extend(std::iter::repeat_n(first.floor() as i64, g.len()));
+    }
+    let mut idx: Vec<i64> = left.iter().flat_map(|&i| [i, i + 1]).collect();
     idx.sort_unstable();
     idx.dedup();
     let mut sigma = vec![[f64::NAN; 6]; idx.len()];
-    let mut rows = Vec::new();
-    for o in set.observations.iter().filter(|o| selected[o.reference]) {
-        let i = grid(o.covariates.time_s);
-        let knot = idx.binary_search(&i).expect("every left knot is listed");
-        let p = &set.visits[o.visit].nav_cov;
-        for j in [knot, knot + 1] {
+    for (r, &i) in rows.iter_mut().zip(&left) {
+        r.knot = idx.binary_search(&i).expect("every left knot is listed");
+        r.w = (grid(r.o) - i as f64).max(0.0);
+        let p = &set.visits[r.o.visit].nav_cov;
+        for j in [r.knot, r.knot + 1] {
             if sigma[j][0].is_nan() {
                 sigma[j] = std::array::from_fn(|k| p[k][k].max(0.0).sqrt().max(MIN_SIGMA));
             }
         }
-        let w = ((o.covariates.time_s - t0) / KNOT_S - i as f64).clamp(0.0, 1.0);
-        rows.push(Row { o, knot, w });
     }
     (idx, rows, sigma)
 }
@@ -87,7 +100,8 @@ fn bridge_var_m2(
     tau: [f64; 2],
     scale: [f64; 2],
 ) -> f64 {
-    let shape = w * (1.0 - w) * KNOT_S;
+    // Zero beyond the right knot (a group's extrapolation, at most a record interval).
+    let shape = (w * (1.0 - w)).max(0.0) * KNOT_S;
     (0..6)
         .map(|k| {
             let a = scale[k / 3];
@@ -157,12 +171,13 @@ pub(crate) fn gram_and_log_det(
     row: &RowFn,
     tau: [f64; 2],
 ) -> (DMatrix<f64>, f64) {
-    KnotSums::accumulate(set, selected, p, row, tau, [1.0; 2]).solve(tau, [1.0; 2])
+    KnotSums::accumulate(set, selected, p, row, tau, [1.0; 2], set.nav_white_share)
+        .solve(tau, [1.0; 2])
 }
 
 /// The returns on the selected references summed knot by knot, their independent variances
-/// `D` (white plus bridge) fixed at the correlation times and scales they were accumulated
-/// with: all that `X^T C^-1 X` and `ln det C` need besides the knots' prior, so that the
+/// `D` (scanner, white navigation noise and bridge) fixed at the correlation times, scales and
+/// white shares they were accumulated with: all that `X^T C^-1 X` and `ln det C` need besides the knots' prior, so that the
 /// likelihood of the nuisance (`app::diagnose::nuisance`) costs O(K 6 p^2) per evaluation
 /// instead of a pass over the returns.
 pub(crate) struct KnotSums {
@@ -181,8 +196,10 @@ pub(crate) struct KnotSums {
 }
 
 impl KnotSums {
-    /// Sums over the returns on `selected`, `D` at correlation times `tau` and the navigation
-    /// sigmas scaled by `scale` (position, attitude).
+    /// Sums over the returns on `selected`, `D` at correlation times `tau`, the navigation
+    /// sigmas scaled by `scale` and white navigation noise of shares `white` (position,
+    /// attitude) of the set's navigation variances ([`ObservationSet::white_nav_var`]; not
+    /// scaled).
     pub(crate) fn accumulate(
         set: &ObservationSet,
         selected: &[bool],
@@ -190,6 +207,7 @@ impl KnotSums {
         row: &RowFn,
         tau: [f64; 2],
         scale: [f64; 2],
+        white: [f64; 2],
     ) -> Self {
         let (idx, rows, sigma) = knots(set, selected);
         let nk = idx.len();
@@ -202,33 +220,118 @@ impl KnotSums {
             idx,
             sigma,
         };
+        let white_var = set.white_nav_var(white);
         let mut entries = Vec::new();
-        for r in &rows {
-            let o = r.o;
-            let nav_cov = &set.visits[o.visit].nav_cov;
-            let d = o.var_white_m2 + bridge_var_m2(o, nav_cov, r.w, tau, scale);
-            s.log_det_d += d.ln();
-            let d_inv = 1.0 / d;
+        for group in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
+            s.add_group(set, group, row, (tau, scale), &white_var, &mut entries);
+        }
+        s
+    }
+
+    /// Adds returns that share their white navigation noise (or one return): their
+    /// covariance `D_g` (scanner, bridge, white navigation noise) is factorised, `D_g = L L^T`,
+    /// and the rows `L^-1 [X H]` added as independent rows of unit variance.
+    fn add_group(
+        &mut self,
+        set: &ObservationSet,
+        group: &[Row],
+        row: &RowFn,
+        (tau, scale): ([f64; 2], [f64; 2]),
+        white_var: &[f64; 6],
+        entries: &mut Vec<(usize, f64)>,
+    ) {
+        let var = |r: &Row| {
+            let nav_var = &set.visits[r.o.visit].nav_cov;
+            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, tau, scale)
+        };
+        let h_of = |r: &Row| {
+            let g = SMatrix::<f64, 6, 1>::from_column_slice(&r.o.nav_gradient);
+            (g * (1.0 - r.w), g * r.w)
+        };
+        let knot = group[0].knot;
+        entries.clear();
+        if let [r] = group {
+            // One return: `L` is its standard deviation.
+            let d = var(r) + white_nav_cov_m2(r.o, r.o, white_var);
+            self.log_det_d += d.ln();
+            let s = d.sqrt().recip();
+            row(r.o, entries);
+            entries.iter_mut().for_each(|e| e.1 *= s);
+            let (hl, hr) = h_of(r);
+            self.add_unit_row(knot, &(hl * s), &(hr * s), entries);
+            return;
+        }
+        let m = group.len();
+        let mut member_entries = Vec::with_capacity(m);
+        for r in group {
             entries.clear();
-            row(o, &mut entries);
-            for &(ca, xa) in &entries {
-                for &(cb, xb) in &entries {
-                    s.x_d_x[(ca, cb)] += d_inv * xa * xb;
-                }
+            row(r.o, entries);
+            member_entries.push(entries.clone());
+        }
+        let mut cols: Vec<usize> = member_entries.iter().flatten().map(|e| e.0).collect();
+        cols.sort_unstable();
+        cols.dedup();
+        let mut x = DMatrix::<f64>::zeros(m, cols.len());
+        let mut h = DMatrix::<f64>::zeros(m, 12);
+        let mut d = DMatrix::<f64>::zeros(m, m);
+        for (a, r) in group.iter().enumerate() {
+            for &(c, v) in &member_entries[a] {
+                x[(a, cols.binary_search(&c).expect("listed"))] += v;
             }
-            let g = SMatrix::<f64, 6, 1>::from_column_slice(&o.nav_gradient);
-            let (hl, hr) = (g * (1.0 - r.w), g * r.w);
-            s.h_d_h_diag[r.knot] += hl * hl.transpose() * d_inv;
-            s.h_d_h_diag[r.knot + 1] += hr * hr.transpose() * d_inv;
-            s.h_d_h_next[r.knot] += hl * hr.transpose() * d_inv;
-            for &(c, x) in &entries {
-                for k in 0..6 {
-                    s.h_d_x[(6 * r.knot + k, c)] += hl[k] * d_inv * x;
-                    s.h_d_x[(6 * r.knot + 6 + k, c)] += hr[k] * d_inv * x;
+            let (hl, hr) = h_of(r);
+            h.view_mut((a, 0), (1, 6)).copy_from(&hl.transpose());
+            h.view_mut((a, 6), (1, 6)).copy_from(&hr.transpose());
+            d[(a, a)] = var(r);
+            for (b, q) in group[..=a].iter().enumerate() {
+                let c = white_nav_cov_m2(r.o, q.o, white_var);
+                d[(a, b)] += c;
+                if b != a {
+                    d[(b, a)] += c;
                 }
             }
         }
-        s
+        let l = d
+            .cholesky()
+            .expect("scanner variance plus a covariance is positive definite")
+            .l();
+        self.log_det_d += 2.0 * l.diagonal().iter().map(|v| v.ln()).sum::<f64>();
+        let x = l.solve_lower_triangular(&x).expect("invertible factor");
+        let h = l.solve_lower_triangular(&h).expect("invertible factor");
+        for a in 0..m {
+            entries.clear();
+            entries.extend(cols.iter().enumerate().map(|(i, &c)| (c, x[(a, i)])));
+            let hl = SMatrix::<f64, 6, 1>::from_fn(|k, _| h[(a, k)]);
+            let hr = SMatrix::<f64, 6, 1>::from_fn(|k, _| h[(a, 6 + k)]);
+            self.add_unit_row(knot, &hl, &hr, entries);
+        }
+    }
+
+    /// Adds a row of unit variance: `x` (sparse columns), navigation rows `hl`, `hr` on knots
+    /// `knot`, `knot + 1`.
+    fn add_unit_row(
+        &mut self,
+        knot: usize,
+        hl: &SMatrix<f64, 6, 1>,
+        hr: &SMatrix<f64, 6, 1>,
+        x: &[(usize, f64)],
+    ) {
+        self.h_d_h_diag[knot] += hl * hl.transpose();
+        self.h_d_h_diag[knot + 1] += hr * hr.transpose();
+        self.h_d_h_next[knot] += hl * hr.transpose();
+        // Column-major storage: entry (i, j) of a matrix with `n` rows is element `j n + i`.
+        let (p, n_b) = (self.x_d_x.nrows(), self.h_d_x.nrows());
+        let (x_d_x, h_d_x) = (self.x_d_x.as_mut_slice(), self.h_d_x.as_mut_slice());
+        for &(ca, xa) in x {
+            for &(cb, xb) in x {
+                x_d_x[ca * p + cb] += xa * xb;
+            }
+            // Rows 6 knot .. 6 knot + 12 of column `ca`: the two knots' six components.
+            let b = &mut h_d_x[ca * n_b + 6 * knot..ca * n_b + 6 * knot + 12];
+            for k in 0..6 {
+                b[k] += hl[k] * xa;
+                b[6 + k] += hr[k] * xa;
+            }
+        }
     }
 
     /// `X^T C^-1 X` and `ln det C` with the knots' prior at correlation times `tau` and the
@@ -324,8 +427,12 @@ mod tests {
             for &(col, v) in &entries {
                 x[(i, col)] = v;
             }
-            c[(i, i)] = r.o.var_white_m2
-                + bridge_var_m2(r.o, &set.visits[r.o.visit].nav_cov, r.w, tau, [1.0; 2]);
+            let nav_var = &set.visits[r.o.visit].nav_cov;
+            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, tau, [1.0; 2]);
+            let white_var = set.white_nav_var(set.nav_white_share);
+            for (j, q) in rows.iter().enumerate() {
+                c[(i, j)] += white_nav_cov_m2(r.o, q.o, &white_var);
+            }
         }
         let prior = DMatrix::from_fn(6 * nk, 6 * nk, |i, j| {
             let (ki, kj) = (i % 6, j % 6);
@@ -344,13 +451,16 @@ mod tests {
     #[test]
     fn block_tridiagonal_solve_equals_the_dense_inverse() {
         let tau = [60.0, 30.0];
-        let set = draw(
+        let mut set = draw(
             &Scenario {
                 nav_tau_s: Some(tau),
+                returns_per_profile: Some(3),
                 ..Default::default()
             },
             3,
         );
+        // Returns three to a profile share their records' white navigation noise.
+        set.nav_white_share = [0.4, 0.2];
         let mut selected = vec![false; set.reference_ids.len()];
         (selected[0], selected[1]) = (true, true);
         let (fast, fast_log_det) =
@@ -391,7 +501,7 @@ mod tests {
         let selected = vec![true; base.reference_ids.len()];
         let p = N_EFFECTS + 1;
         let (want, want_log_det) = gram_and_log_det(&scaled, &selected, p, &catalogue_row, tau);
-        let sums = KnotSums::accumulate(&base, &selected, p, &catalogue_row, tau, scale);
+        let sums = KnotSums::accumulate(&base, &selected, p, &catalogue_row, tau, scale, [0.0; 2]);
         let (got, got_log_det) = sums.solve(tau, scale);
         let size = crate::testing::max_abs(want.iter().copied());
         let err = crate::testing::max_abs((&got - &want).iter().copied());
@@ -399,7 +509,15 @@ mod tests {
         assert!(err < 1e-10 * size, "largest difference {err:e} of {size:e}");
         assert!((got_log_det - want_log_det).abs() < 1e-10 * want_log_det.abs());
         // Solved away from where it was summed: close, not equal (bridge variances held).
-        let far = KnotSums::accumulate(&base, &selected, p, &catalogue_row, [60.0, 30.0], [1.0; 2]);
+        let far = KnotSums::accumulate(
+            &base,
+            &selected,
+            p,
+            &catalogue_row,
+            [60.0, 30.0],
+            [1.0; 2],
+            [0.0; 2],
+        );
         let (approx, _) = far.solve(tau, scale);
         let rel = crate::testing::max_abs((&approx - &want).iter().copied()) / size;
         assert!(rel > 0.0 && rel < 0.05, "relative difference {rel:e}");

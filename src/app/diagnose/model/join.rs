@@ -20,15 +20,18 @@ impl ObservationSet {
         let Some(first) = sets.first() else {
             return Err(invalid("no observation set to join".into()));
         };
-        if let Some(k) = sets.iter().position(|s| s.nav_tau_s != first.nav_tau_s) {
+        if let Some(k) = sets.iter().position(|s| {
+            s.nav_tau_s != first.nav_tau_s || s.nav_white_share != first.nav_white_share
+        }) {
             return Err(invalid(format!(
-                "set {k} has nav_tau_s = {:?}, set 0 {:?}: surveys of one mount share one \
-                 navigation error model",
-                sets[k].nav_tau_s, first.nav_tau_s
+                "set {k} has nav_tau_s = {:?} and nav_white_share = {:?}, set 0 {:?} and {:?}: \
+                 surveys of one mount share one navigation error model",
+                sets[k].nav_tau_s, sets[k].nav_white_share, first.nav_tau_s, first.nav_white_share
             )));
         }
         let mut joint = ObservationSet {
             nav_tau_s: first.nav_tau_s,
+            nav_white_share: first.nav_white_share,
             ..Default::default()
         };
         for set in sets {

@@ -38,7 +38,7 @@ pub(crate) fn marginal_var_m2(set: &ObservationSet, o: &Observation) -> f64 {
     let gpg: f64 = (0..6)
         .map(|i| (0..6).map(|j| g[i] * p[i][j] * g[j]).sum::<f64>())
         .sum();
-    o.var_white_m2 + gpg.max(0.0)
+    set.independent_var_m2(o) + gpg.max(0.0)
 }
 
 /// The gap on `refs` of the residuals `corrected(o)` (validated set).

@@ -161,6 +161,20 @@ pub struct Observation {
     pub signature: [f64; N_EFFECTS],
     /// Where and how it was measured.
     pub covariates: Covariates,
+    /// The two SBET records its navigation state is interpolated between (`None`: a control
+    /// point's mean over returns of many records): white navigation noise, one draw per
+    /// record, is shared by the returns between the same two records.
+    pub nav_record: Option<NavRecord>,
+}
+
+/// Where a return sits between two trajectory records (docs/diagnosis.md, "White navigation
+/// noise").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NavRecord {
+    /// Index of the first record in the trajectory file (the second is the next one).
+    pub index: usize,
+    /// Interpolation weight of the second record, 0..1.
+    pub w: f64,
 }
 
 /// One time-contiguous run of returns over one patch in one pass. Without correlation times
@@ -192,6 +206,11 @@ pub struct ObservationSet {
     /// Gauss-Markov processes in time, within and between visits). `None`: one error per
     /// visit, visits independent.
     pub nav_tau_s: Option<[f64; 2]>,
+    /// Variance of white navigation noise (one draw per trajectory record, shared by the
+    /// returns interpolated between the same records) per component, as a share of the
+    /// component's variance in `nav_cov` (position, attitude block; docs/diagnosis.md, "White
+    /// navigation noise"). 0: none; more needs `nav_tau_s`.
+    pub nav_white_share: [f64; 2],
 }
 
 /// Column of `effect` in [`Observation::signature`].
@@ -296,12 +315,49 @@ impl Covariate {
     }
 }
 
+/// Covariance (m^2) of the white navigation noise of returns `a` and `b`: per component `k`
+/// one draw per trajectory record of variance `white_var[k]` (m^2, rad^2), interpolated as
+/// the navigation state is. Zero unless both lie between the same two records of one pass
+/// (returns between neighbouring records also share one; that covariance is left out,
+/// docs/diagnosis.md, "White navigation noise"); `a`'s own white navigation variance when `b`
+/// is `a`.
+pub(crate) fn white_nav_cov_m2(a: &Observation, b: &Observation, white_var: &[f64; 6]) -> f64 {
+    let (Some(ra), Some(rb)) = (a.nav_record, b.nav_record) else {
+        return 0.0;
+    };
+    if ra.index != rb.index || a.covariates.pass != b.covariates.pass {
+        return 0.0;
+    }
+    let shared = (1.0 - ra.w) * (1.0 - rb.w) + ra.w * rb.w;
+    let per_component: f64 = (0..6)
+        .map(|k| a.nav_gradient[k] * b.nav_gradient[k] * white_var[k])
+        .sum();
+    shared * per_component
+}
+
 impl ObservationSet {
     /// Checks every index and number the statistics rely on; the error names the observation
     /// or visit and the field. Called once, where a set is made from a survey
     /// (`observe::observe`); the stages after it take the set as valid (screening and
     /// the navigation model keep it so) and do not check it again.
     pub fn validate(&self) -> Result<()> {
+        if self
+            .nav_white_share
+            .iter()
+            .any(|w| !w.is_finite() || *w < 0.0)
+        {
+            return Err(invalid(format!(
+                "nav_white_share = {:?} (must be finite and >= 0)",
+                self.nav_white_share
+            )));
+        }
+        if self.nav_white_share != [0.0; 2] && self.nav_tau_s.is_none() {
+            return Err(invalid(format!(
+                "nav_white_share = {:?} without nav_tau_s (white navigation noise is part of \
+                 the continuous-time model)",
+                self.nav_white_share
+            )));
+        }
         if let Some(tau) = self.nav_tau_s {
             if tau.iter().any(|t| !t.is_finite() || *t <= 0.0) {
                 return Err(invalid(format!(
@@ -349,6 +405,12 @@ impl ObservationSet {
                     "observation {i}: residual_m, nav_gradient or signature is not finite"
                 )));
             }
+            if let Some(r) = o.nav_record.filter(|r| !(0.0..=1.0).contains(&r.w)) {
+                return Err(invalid(format!(
+                    "observation {i}: nav_record.w = {} (must be within 0..1)",
+                    r.w
+                )));
+            }
         }
         Ok(())
     }
@@ -371,7 +433,34 @@ impl ObservationSet {
             reference_ids: self.reference_ids.clone(),
             passes: self.passes,
             nav_tau_s: self.nav_tau_s,
+            nav_white_share: self.nav_white_share,
         }
+    }
+
+    /// The variance of `o` (m^2) that no other return's navigation error explains: the
+    /// scanner's, plus the white navigation noise ([`Self::nav_white_share`]) along its
+    /// navigation gradient (which returns between the same records share).
+    pub fn independent_var_m2(&self, o: &Observation) -> f64 {
+        o.var_white_m2 + white_nav_cov_m2(o, o, &self.white_nav_var(self.nav_white_share))
+    }
+
+    /// Variance of the white navigation noise per component (m^2, rad^2) at shares `white`
+    /// (position, attitude block) of the median over the visits of each component's variance:
+    /// an SBET's record-to-record jitter does not follow its stated sigma, which grows in an
+    /// outage and with a random walk.
+    pub fn white_nav_var(&self, white: [f64; 2]) -> [f64; 6] {
+        if white == [0.0; 2] || self.visits.is_empty() {
+            return [0.0; 6];
+        }
+        std::array::from_fn(|k| {
+            let mut v: Vec<f64> = self
+                .visits
+                .iter()
+                .map(|v| v.nav_cov[k][k].max(0.0))
+                .collect();
+            let mid = v.len() / 2;
+            white[k / 3] * *v.select_nth_unstable_by(mid, f64::total_cmp).1
+        })
     }
 
     /// Reference indices that have at least one observation, ascending.

@@ -27,7 +27,20 @@ pub struct Scenario {
     /// True / declared sigma of the navigation position and attitude errors (the SMRMSG
     /// misstating them).
     pub nav_scale: [f64; 2],
+    /// White navigation noise, one draw per trajectory record ([`RECORD_HZ`]) interpolated
+    /// to the returns, as shares of each block's true variance (of the visits' median, as
+    /// [`ObservationSet::white_nav_var`]); the drawn set does not
+    /// declare it (its `nav_white_share` stays 0).
+    pub nav_white: [f64; 2],
+    /// `Some(k)`: a visit's returns come `k` at a time in profiles [`PROFILE_S`] apart (and
+    /// share their records' white navigation noise); `None`: each at its own random time.
+    pub returns_per_profile: Option<usize>,
 }
+
+/// Rate of the drawn trajectory records (Hz): the simulator's SBET rate.
+pub const RECORD_HZ: f64 = 200.0;
+/// Spacing of the profiles when returns come in profiles (s): the simulator's.
+pub const PROFILE_S: f64 = 0.01;
 
 impl Default for Scenario {
     fn default() -> Self {
@@ -43,6 +56,8 @@ impl Default for Scenario {
             range_cyclic_m: 0.0,
             nav_tau_s: None,
             nav_scale: [1.0, 1.0],
+            nav_white: [0.0, 0.0],
+            returns_per_profile: None,
         }
     }
 }
@@ -112,10 +127,14 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
                 pass,
                 nav_cov,
             });
-            for _ in 0..s.returns_per_visit {
+            for i in 0..s.returns_per_visit {
                 let beta: f64 = rng.random_range(-90.0..90.0);
+                let time_s = match s.returns_per_profile {
+                    Some(k) => t0 + (i / k) as f64 * PROFILE_S,
+                    None => t0 + rng.random_range(0.0..2.0),
+                };
                 let covariates = Covariates {
-                    time_s: t0 + rng.random_range(0.0..2.0),
+                    time_s,
                     range_m: rng.random_range(5.0..50.0),
                     beta_deg: beta,
                     incidence_deg: rng.random_range(0.0..80.0),
@@ -153,6 +172,10 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
                     nav_gradient,
                     signature,
                     covariates,
+                    nav_record: Some(NavRecord {
+                        index: (time_s * RECORD_HZ).floor() as usize,
+                        w: (time_s * RECORD_HZ).fract(),
+                    }),
                 });
             }
         }
@@ -216,13 +239,30 @@ pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
         }
         Some(tau) => gauss_markov(set, tau, s.nav_scale, &mut rng),
     };
+    // Each record's white navigation noise (unit normals per component), drawn when first
+    // needed.
+    let mut white = std::collections::BTreeMap::<(usize, usize), [f64; 6]>::new();
+    let white_var = set.white_nav_var(s.nav_white);
     for (o, z) in set.observations.iter_mut().zip(&z) {
         let systematic: f64 = s
             .truth
             .iter()
             .map(|&(e, x)| o.signature[signature_index(e)] * x)
             .sum();
-        let nav: f64 = o.nav_gradient.iter().zip(z).map(|(g, z)| g * z).sum();
+        let mut nav: f64 = o.nav_gradient.iter().zip(z).map(|(g, z)| g * z).sum();
+        if s.nav_white != [0.0; 2] {
+            let r = o.nav_record.expect("drawn returns have records");
+            let mut record = |i: usize| {
+                *white
+                    .entry((o.covariates.pass, i))
+                    .or_insert_with(|| std::array::from_fn::<f64, 6, _>(|_| normal(&mut rng)))
+            };
+            let (a, b) = (record(r.index), record(r.index + 1));
+            for k in 0..6 {
+                let sd = s.nav_scale[k / 3] * white_var[k].sqrt();
+                nav += o.nav_gradient[k] * sd * ((1.0 - r.w) * a[k] + r.w * b[k]);
+            }
+        }
         let cyclic = s.range_cyclic_m
             * (std::f64::consts::TAU * o.covariates.range_m / RANGE_PERIOD_M).sin();
         o.residual_m = systematic + nav + cyclic + o.var_white_m2.sqrt() * normal(&mut rng);

@@ -18,7 +18,7 @@ mod targets;
 pub use counts::{ObserveCounts, Observed};
 pub use joint::observe_joint;
 
-use super::model::{Covariates, Effect, Observation, ObservationSet, Side, Visit};
+use super::model::{Covariates, Effect, NavRecord, Observation, ObservationSet, Side, Visit};
 use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
 use crate::georef::{ReturnTerms, Sensor};
 use crate::io::patches::{read_patches, PlanarPatch};
@@ -874,6 +874,10 @@ fn observation_along(
         nav_gradient: std::array::from_fn(|k| g[k]),
         signature: Effect::ALL.map(|e| signature(e, &g, loc, model, at.range_m)),
         covariates,
+        nav_record: model
+            .traj
+            .interval_at(loc.t_s + model.position_latency_s)
+            .map(|(index, w)| NavRecord { index, w }),
     }
 }
 

@@ -275,6 +275,7 @@ fn centroid(
         nav_gradient: [0.0; 6],
         signature: [0.0; N_EFFECTS],
         covariates: cov,
+        nav_record: None,
     };
     for r in returns {
         let at = Surface {

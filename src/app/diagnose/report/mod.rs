@@ -237,9 +237,17 @@ impl Diagnosis {
     /// The navigation error model used, and whence.
     fn write_nuisance(&self, s: &mut String) {
         let n = &self.nuisance;
+        // Three decimals, or three significant digits below 0.01 (a white share at its bound).
+        let f = |v: f64| {
+            if v != 0.0 && v.abs() < 0.01 {
+                format!("{v:.2e}")
+            } else {
+                format!("{v:.3}")
+            }
+        };
         let p = |x: &crate::app::diagnose::nuisance::Parameter, unit: &str| match x.sigma {
-            Some(sd) => format!("{:.3} +- {:.3}{unit} ({})", x.value, sd, x.source),
-            None => format!("{:.3}{unit} ({})", x.value, x.source),
+            Some(sd) => format!("{} +- {}{unit} ({})", f(x.value), f(sd), x.source),
+            None => format!("{}{unit} ({})", f(x.value), x.source),
         };
         let _ = writeln!(
             s,
@@ -249,11 +257,14 @@ impl Diagnosis {
         let _ = writeln!(
             s,
             "Correlation times: position {}, attitude {}; true / SMRMSG sigma: position {}, \
+             attitude {}; white noise per SBET record, share of the SMRMSG variance: position {}, \
              attitude {} (diagnosis.json `nuisance`).\n",
             p(&n.position_tau_s, " s"),
             p(&n.attitude_tau_s, " s"),
             p(&n.position_scale, ""),
-            p(&n.attitude_scale, "")
+            p(&n.attitude_scale, ""),
+            p(&n.position_white_share, ""),
+            p(&n.attitude_white_share, "")
         );
     }
 
