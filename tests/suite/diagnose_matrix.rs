@@ -16,7 +16,7 @@
 //! The full matrix is 9 x 2 x 2 cells of 48 cases x 5 seeds: hours on 2 cores. `cargo test`
 //! skips it (`#[ignore]`); CI runs a fixed sample (3 models, foreign off and on, one lap, no
 //! effect, attitude latency, boresight_x and range zero at 2 D, D and 0.4 D, the cyclic range
-//! error, 5 seeds: 330 diagnoses, about 12 minutes; a 90% line is then decided by 90 cases, not
+//! error, 5 seeds: 330 diagnoses, about 17 minutes of CPU; a 90% line is then decided by 90 cases, not
 //! by one), and the full table is made by
 //! `KINESCAN_MATRIX=full cargo test --release --test suite -- --ignored diagnosis_matrix
 //! --nocapture` (docs/diagnosis.md). Environment: `KINESCAN_MATRIX_MODELS`,

@@ -155,9 +155,10 @@ pub struct CovariateTest {
 /// `r / sigma` for every observation (residual corrected by `theta` when given), sigma the
 /// marginal `sqrt(var_white + g P g^T)`.
 pub fn normalised_residuals(set: &ObservationSet, theta: Option<Theta>) -> Vec<f64> {
+    let var_m2 = marginal_var_m2(set);
     set.observations
         .iter()
-        .map(|o| corrected(o, theta) / marginal_var_m2(set, o).sqrt())
+        .map(|o| corrected(o, theta) / var_m2(o).sqrt())
         .collect()
 }
 
@@ -239,10 +240,11 @@ fn test_covariate(
     let offsets = fit_offsets(set, refs, &binning, &|o| corrected(o, theta))?;
     let mut n = vec![0usize; binning.len()];
     let mut sum_norm = vec![0.0; binning.len()];
+    let var_m2 = marginal_var_m2(set);
     for o in on_refs(set, refs) {
         if let Some(b) = binning.of(covariate.value(&o.covariates)) {
             n[b] += 1;
-            sum_norm[b] += corrected(o, theta) / marginal_var_m2(set, o).sqrt();
+            sum_norm[b] += corrected(o, theta) / var_m2(o).sqrt();
         }
     }
     let n_obs: usize = n.iter().sum();

@@ -42,53 +42,64 @@ struct Row<'a> {
     group: Option<(usize, usize)>,
 }
 
-/// The knots (grid indices from the set's first return, ascending) the returns on `selected`
-/// touch, the returns grouped by the records they are interpolated between (each group on
-/// the knot interval of its earliest return: a group that straddles a knot extrapolates the
-/// line by at most one record interval, so that the returns sharing white noise share their
-/// knots), and each knot's sigmas (from the first return touching it).
-fn knots<'a>(
-    set: &'a ObservationSet,
-    selected: &[bool],
-) -> (Vec<i64>, Vec<Row<'a>>, Vec<[f64; 6]>) {
-    let t0 = set
-        .observations
-        .iter()
-        .map(|o| o.covariates.time_s)
-        .fold(f64::INFINITY, f64::min);
-    let grid = |o: &Observation| (o.covariates.time_s - t0) / KNOT_S;
-    let mut rows: Vec<Row> = set
-        .observations
-        .iter()
-        .filter(|o| selected[o.reference])
-        .map(|o| Row {
-            o,
-            knot: 0,
-            w: 0.0,
-            group: o.nav_record.map(|r| (o.covariates.pass, r.index)),
-        })
-        .collect();
-    rows.sort_by_key(|r| r.group);
-    let mut left = Vec::with_capacity(rows.len());
-    for g in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
-        let first = g.iter().map(|r| grid(r.o)).fold(f64::INFINITY, f64::min);
-        left.extend(std::iter::repeat_n(first.floor() as i64, g.len()));
-    }
-    let mut idx: Vec<i64> = left.iter().flat_map(|&i| [i, i + 1]).collect();
-    idx.sort_unstable();
-    idx.dedup();
-    let mut sigma = vec![[f64::NAN; 6]; idx.len()];
-    for (r, &i) in rows.iter_mut().zip(&left) {
-        r.knot = idx.binary_search(&i).expect("every left knot is listed");
-        r.w = (grid(r.o) - i as f64).max(0.0);
-        let p = &set.visits[r.o.visit].nav_cov;
-        for j in [r.knot, r.knot + 1] {
-            if sigma[j][0].is_nan() {
-                sigma[j] = std::array::from_fn(|k| p[k][k].max(0.0).sqrt().max(MIN_SIGMA));
+/// The returns on the selected references laid on the knots: made once per selection (a
+/// sort of the returns), summed at any nuisance ([`KnotSums::accumulate`]).
+pub(crate) struct Layout<'a> {
+    /// Knots (grid indices from the set's first return, ascending).
+    idx: Vec<i64>,
+    /// The returns grouped by the records they are interpolated between (each group on the
+    /// knot interval of its earliest return: a group that straddles a knot extrapolates the
+    /// line by at most one record interval, so that the returns sharing white noise share
+    /// their knots).
+    rows: Vec<Row<'a>>,
+    /// Each knot's sigmas (from the first return touching it).
+    sigma: Vec<[f64; 6]>,
+}
+
+impl<'a> Layout<'a> {
+    pub(crate) fn new(set: &'a ObservationSet, selected: &[bool]) -> Self {
+        let t0 = set
+            .observations
+            .iter()
+            .map(|o| o.covariates.time_s)
+            .fold(f64::INFINITY, f64::min);
+        let grid = |o: &Observation| (o.covariates.time_s - t0) / KNOT_S;
+        let mut rows: Vec<Row> = set
+            .observations
+            .iter()
+            .filter(|o| selected[o.reference])
+            .map(|o| Row {
+                o,
+                knot: 0,
+                w: 0.0,
+                group: o.nav_record.map(|r| (o.covariates.pass, r.index)),
+            })
+            .collect();
+        rows.sort_by_key(|r| r.group);
+        let mut left = Vec::with_capacity(rows.len());
+        for g in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
+            let first = g.iter().map(|r| grid(r.o)).fold(f64::INFINITY, f64::min);
+            left.extend(std::iter::repeat_n(first.floor() as i64, g.len()));
+        }
+        // Within a pass the left knots do not decrease: repeats go before the sort.
+        let mut idx = left.clone();
+        idx.dedup();
+        let mut idx: Vec<i64> = idx.iter().flat_map(|&i| [i, i + 1]).collect();
+        idx.sort_unstable();
+        idx.dedup();
+        let mut sigma = vec![[f64::NAN; 6]; idx.len()];
+        for (r, &i) in rows.iter_mut().zip(&left) {
+            r.knot = idx.binary_search(&i).expect("every left knot is listed");
+            r.w = (grid(r.o) - i as f64).max(0.0);
+            let p = &set.visits[r.o.visit].nav_cov;
+            for j in [r.knot, r.knot + 1] {
+                if sigma[j][0].is_nan() {
+                    sigma[j] = std::array::from_fn(|k| p[k][k].max(0.0).sqrt().max(MIN_SIGMA));
+                }
             }
         }
+        Layout { idx, rows, sigma }
     }
-    (idx, rows, sigma)
 }
 
 /// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient, the
@@ -171,7 +182,8 @@ pub(crate) fn gram_and_log_det(
     row: &RowFn,
     tau: [f64; 2],
 ) -> (DMatrix<f64>, f64) {
-    KnotSums::accumulate(set, selected, p, row, tau, [1.0; 2], set.nav_white_share)
+    let layout = Layout::new(set, selected);
+    KnotSums::accumulate(set, &layout, p, row, tau, [1.0; 2], set.nav_white_share)
         .solve(tau, [1.0; 2])
 }
 
@@ -202,27 +214,29 @@ impl KnotSums {
     /// scaled).
     pub(crate) fn accumulate(
         set: &ObservationSet,
-        selected: &[bool],
+        layout: &Layout,
         p: usize,
         row: &RowFn,
         tau: [f64; 2],
         scale: [f64; 2],
         white: [f64; 2],
     ) -> Self {
-        let (idx, rows, sigma) = knots(set, selected);
-        let nk = idx.len();
+        let nk = layout.idx.len();
         let mut s = KnotSums {
             x_d_x: DMatrix::zeros(p, p),
             h_d_h_diag: vec![Matrix6::zeros(); nk],
             h_d_h_next: vec![Matrix6::zeros(); nk.saturating_sub(1)],
             h_d_x: DMatrix::zeros(6 * nk, p),
             log_det_d: 0.0,
-            idx,
-            sigma,
+            idx: layout.idx.clone(),
+            sigma: layout.sigma.clone(),
         };
         let white_var = set.white_nav_var(white);
         let mut entries = Vec::new();
-        for group in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
+        for group in layout
+            .rows
+            .chunk_by(|a, b| a.group.is_some() && a.group == b.group)
+        {
             s.add_group(set, group, row, (tau, scale), &white_var, &mut entries);
         }
         s
@@ -411,7 +425,7 @@ mod tests {
     /// Dense reference: `C = D + H Sigma H^T` with `Sigma` the Gauss-Markov covariance of the
     /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses).
     fn dense_gram(set: &ObservationSet, selected: &[bool], tau: [f64; 2]) -> (DMatrix<f64>, f64) {
-        let (idx, rows, sigma) = knots(set, selected);
+        let Layout { idx, rows, sigma } = Layout::new(set, selected);
         let (n, nk) = (rows.len(), idx.len());
         let mut h = DMatrix::<f64>::zeros(n, 6 * nk);
         let mut x = DMatrix::<f64>::zeros(n, N_EFFECTS + 1);
@@ -501,7 +515,8 @@ mod tests {
         let selected = vec![true; base.reference_ids.len()];
         let p = N_EFFECTS + 1;
         let (want, want_log_det) = gram_and_log_det(&scaled, &selected, p, &catalogue_row, tau);
-        let sums = KnotSums::accumulate(&base, &selected, p, &catalogue_row, tau, scale, [0.0; 2]);
+        let layout = Layout::new(&base, &selected);
+        let sums = KnotSums::accumulate(&base, &layout, p, &catalogue_row, tau, scale, [0.0; 2]);
         let (got, got_log_det) = sums.solve(tau, scale);
         let size = crate::testing::max_abs(want.iter().copied());
         let err = crate::testing::max_abs((&got - &want).iter().copied());
@@ -511,7 +526,7 @@ mod tests {
         // Solved away from where it was summed: close, not equal (bridge variances held).
         let far = KnotSums::accumulate(
             &base,
-            &selected,
+            &layout,
             p,
             &catalogue_row,
             [60.0, 30.0],

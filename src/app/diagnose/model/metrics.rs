@@ -32,13 +32,16 @@ pub fn gap(set: &ObservationSet, refs: &[usize], theta: Option<Theta>) -> Result
 }
 
 /// The per-return marginal variance `var_white + g P g^T` (m^2).
-pub(crate) fn marginal_var_m2(set: &ObservationSet, o: &Observation) -> f64 {
-    let p = &set.visits[o.visit].nav_cov;
-    let g = &o.nav_gradient;
-    let gpg: f64 = (0..6)
-        .map(|i| (0..6).map(|j| g[i] * p[i][j] * g[j]).sum::<f64>())
-        .sum();
-    set.independent_var_m2(o) + gpg.max(0.0)
+pub(crate) fn marginal_var_m2(set: &ObservationSet) -> impl Fn(&Observation) -> f64 + Sync + '_ {
+    let independent = set.independent_var_m2();
+    move |o| {
+        let p = &set.visits[o.visit].nav_cov;
+        let g = &o.nav_gradient;
+        let gpg: f64 = (0..6)
+            .map(|i| (0..6).map(|j| g[i] * p[i][j] * g[j]).sum::<f64>())
+            .sum();
+        independent(o) + gpg.max(0.0)
+    }
 }
 
 /// The gap on `refs` of the residuals `corrected(o)` (validated set).
@@ -60,11 +63,12 @@ pub(crate) fn gap_corrected(
         selected[r] = true;
     }
     let (mut sum, mut sum2, mut inside) = (0.0, 0.0, 0usize);
+    let var_m2 = marginal_var_m2(set);
     for o in set.observations.iter().filter(|o| selected[o.reference]) {
         let r = corrected(o);
         sum += r;
         sum2 += r * r;
-        if r * r < 1.96 * 1.96 * marginal_var_m2(set, o) {
+        if r * r < 1.96 * 1.96 * var_m2(o) {
             inside += 1;
         }
     }

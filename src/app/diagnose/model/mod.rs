@@ -440,8 +440,10 @@ impl ObservationSet {
     /// The variance of `o` (m^2) that no other return's navigation error explains: the
     /// scanner's, plus the white navigation noise ([`Self::nav_white_share`]) along its
     /// navigation gradient (which returns between the same records share).
-    pub fn independent_var_m2(&self, o: &Observation) -> f64 {
-        o.var_white_m2 + white_nav_cov_m2(o, o, &self.white_nav_var(self.nav_white_share))
+    /// The white navigation variances are taken once, when the function is made.
+    pub fn independent_var_m2(&self) -> impl Fn(&Observation) -> f64 + Sync + '_ {
+        let white_var = self.white_nav_var(self.nav_white_share);
+        move |o| o.var_white_m2 + white_nav_cov_m2(o, o, &white_var)
     }
 
     /// Variance of the white navigation noise per component (m^2, rad^2) at shares `white`

@@ -16,7 +16,7 @@
 //! the observed information (the inverse Hessian of the restricted log-likelihood in the
 //! logarithms of the parameters).
 
-use super::model::continuous::KnotSums;
+use super::model::continuous::{KnotSums, Layout};
 use super::model::design::catalogue_row;
 use super::model::{ObservationSet, N_EFFECTS};
 use crate::{Error, Result};
@@ -37,6 +37,10 @@ const WHITE_START: f64 = 0.01;
 /// How far one search of a white share reaches (a factor either way): a white share is
 /// searched once a round, since each of its evaluations sums the returns again.
 const WHITE_REACH: f64 = 16.0;
+/// Brent's search of a white share stops when its bracket is this narrow in the logarithm
+/// (a value to 1%, the rounds' own tolerance), or after [`WHITE_STEPS`] evaluations.
+const WHITE_TOLERANCE: f64 = 0.01;
+const WHITE_STEPS: usize = 12;
 
 /// Whether parameter `i` (search order, [`bounds`]) is a white share.
 fn is_white(i: usize) -> bool {
@@ -211,7 +215,7 @@ struct Reml<'a> {
     /// Centre of the prior of each parameter, and whether it is free (penalised).
     prior_centre: [f64; 6],
     free: [bool; 6],
-    selected: Vec<bool>,
+    layout: Layout<'a>,
     columns: Vec<usize>,
     sums: KnotSums,
     sums_at: [f64; 6],
@@ -223,7 +227,7 @@ impl Reml<'_> {
     fn resum(&mut self, x: &[f64; 6]) {
         self.sums = KnotSums::accumulate(
             self.base,
-            &self.selected,
+            &self.layout,
             N_EFFECTS + 1,
             &catalogue_row,
             [x[0], x[1]],
@@ -238,9 +242,13 @@ impl Reml<'_> {
     fn at(&mut self, x: &[f64; 6]) -> Option<f64> {
         self.evaluations += 1;
         // The white noise is most of a return's independent variance: sums at another white
-        // share would be far off, so they are made again (a pass over the returns).
+        // share would be far off, so they are made again (a pass over the returns), with the
+        // bridge variances still at the correlation times and scales they were summed at (so
+        // that every evaluation of a search or of the Hessian holds them at the same point).
         if x[4..] != self.sums_at[4..] {
-            self.resum(x);
+            let mut y = self.sums_at;
+            y[4..].copy_from_slice(&x[4..]);
+            self.resum(&y);
         }
         let (m, log_det_c) = self.sums.solve([x[0], x[1]], [x[2], x[3]]);
         let c = &self.columns;
@@ -302,9 +310,10 @@ pub fn estimate(
         fixed[4].unwrap_or(WHITE_START),
         fixed[5].unwrap_or(WHITE_START),
     ];
+    let layout = Layout::new(set, &selected);
     let sums = KnotSums::accumulate(
         set,
-        &selected,
+        &layout,
         N_EFFECTS + 1,
         &catalogue_row,
         [x[0], x[1]],
@@ -323,7 +332,7 @@ pub fn estimate(
             WHITE_START,
         ],
         free: std::array::from_fn(|i| fixed[i].is_none()),
-        selected,
+        layout,
         columns,
         sums,
         sums_at: x,
@@ -394,42 +403,135 @@ fn failed(what: &str) -> Error {
     }
 }
 
-/// Golden-section search of parameter `i` in its logarithm, within a factor 4 of its value
-/// and its bounds; returns the best log-likelihood and leaves the best value in `x[i]`.
+/// Search of parameter `i` in its logarithm, within a factor 4 (a white share: [`WHITE_REACH`])
+/// of its value and its bounds; returns the best log-likelihood and leaves the best value in
+/// `x[i]`. Golden section; Brent's parabolic search for a white share, whose evaluations each
+/// pass over the returns.
 fn search(reml: &mut Reml, x: &mut [f64; 6], i: usize, current: f64) -> f64 {
     let (lo_b, hi_b) = bounds(i);
     let centre = x[i].ln();
     let reach = if is_white(i) { WHITE_REACH } else { 4f64 }.ln();
-    let (mut a, mut b) = (
+    let bracket = (
         (centre - reach).max(lo_b.ln()),
         (centre + reach).min(hi_b.ln()),
     );
-    let eval = |reml: &mut Reml, v: f64| {
-        let mut y = *x;
+    let start = *x;
+    let mut eval = |v: f64| {
+        let mut y = start;
         y[i] = v.exp();
         reml.at(&y).unwrap_or(f64::NEG_INFINITY)
     };
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (eval(reml, c), eval(reml, d));
-    for _ in 0..GOLDEN_STEPS {
-        if fc > fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = eval(reml, c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = eval(reml, d);
-        }
-    }
-    let (v, f) = if fc > fd { (c, fc) } else { (d, fd) };
+    let (v, f) = if is_white(i) {
+        brent_max(&mut eval, bracket, (centre, current))
+    } else {
+        golden_max(&mut eval, bracket)
+    };
     if f > current {
         x[i] = v.exp();
         f
     } else {
         current
     }
+}
+
+/// Golden-section search for the maximum of `f` on `(a, b)`: [`GOLDEN_STEPS`] steps.
+fn golden_max(f: &mut impl FnMut(f64) -> f64, (mut a, mut b): (f64, f64)) -> (f64, f64) {
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..GOLDEN_STEPS {
+        if fc > fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = f(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = f(d);
+        }
+    }
+    if fc > fd {
+        (c, fc)
+    } else {
+        (d, fd)
+    }
+}
+
+/// Brent's search for the maximum of `f` on `(a, b)` from `x0` (where `f` is `f0`):
+/// parabolas through the three best points, a golden-section step where a parabola's vertex
+/// falls outside the bracket or does not shrink the step; stops at a bracket of
+/// [`WHITE_TOLERANCE`] or after [`WHITE_STEPS`] evaluations.
+fn brent_max(
+    f: &mut impl FnMut(f64) -> f64,
+    (mut a, mut b): (f64, f64),
+    (x0, f0): (f64, f64),
+) -> (f64, f64) {
+    const GOLDEN: f64 = 0.381_966_011_250_105;
+    let tol = 0.5 * WHITE_TOLERANCE;
+    // x the best point, w the second best, v the previous w; each with its value.
+    let (mut x, mut w, mut v) = (x0, x0, x0);
+    let (mut fx, mut fw, mut fv) = (f0, f0, f0);
+    // The step before last and the last step.
+    let (mut e, mut d) = (0.0f64, 0.0f64);
+    for _ in 0..WHITE_STEPS {
+        let m = 0.5 * (a + b);
+        if (x - m).abs() <= 2.0 * tol - 0.5 * (b - a) {
+            break;
+        }
+        let golden = |x: f64| if x >= m { a - x } else { b - x };
+        let mut parabolic = None;
+        if e.abs() > tol {
+            // Vertex of the parabola through (x, fx), (w, fw), (v, fv): x + p / q.
+            let r = (x - w) * (fx - fv);
+            let q = (x - v) * (fx - fw);
+            let mut p = (x - v) * q - (x - w) * r;
+            let mut q = 2.0 * (q - r);
+            if q > 0.0 {
+                p = -p;
+            }
+            q = q.abs();
+            if p.abs() < (0.5 * q * e).abs() && p > q * (a - x) && p < q * (b - x) {
+                parabolic = Some(p / q);
+            }
+        }
+        (e, d) = match parabolic {
+            Some(step) => {
+                let u = x + step;
+                let step = if u - a < 2.0 * tol || b - u < 2.0 * tol {
+                    tol.copysign(m - x)
+                } else {
+                    step
+                };
+                (d, step)
+            }
+            None => {
+                let e = golden(x);
+                (e, GOLDEN * e)
+            }
+        };
+        let u = x + if d.abs() >= tol { d } else { tol.copysign(d) };
+        let fu = f(u);
+        if fu >= fx {
+            if u >= x {
+                a = x;
+            } else {
+                b = x;
+            }
+            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
+        } else {
+            if u < x {
+                a = u;
+            } else {
+                b = u;
+            }
+            if fu >= fw || w == x {
+                (v, fv, w, fw) = (w, fw, u, fu);
+            } else if fu >= fv || v == x || v == w {
+                (v, fv) = (u, fu);
+            }
+        }
+    }
+    (x, fx)
 }
 
 /// Covariance of the logarithms of the free parameters: the inverse of the negative Hessian
@@ -455,25 +557,46 @@ fn log_covariance(
         return (out, SigmaKind::Marginal);
     }
     let h = HESSIAN_STEP;
-    let at = |reml: &mut Reml, steps: &[(usize, f64)]| {
-        let mut y = *x;
-        for &(i, s) in steps {
-            y[i] *= (s * h).exp();
-        }
-        reml.at(&y).unwrap_or(f64::NAN)
-    };
     let k = inner.len();
-    let mut hess = DMatrix::<f64>::zeros(k, k);
+    // The points of the central differences: each parameter +-1 step, each pair +-1 +-1.
+    let mut steps: Vec<Vec<(usize, f64)>> = Vec::new();
     for a in 0..k {
-        let i = inner[a];
-        hess[(a, a)] = (at(reml, &[(i, 1.0)]) - 2.0 * best + at(reml, &[(i, -1.0)])) / (h * h);
+        steps.extend([[1.0], [-1.0]].map(|[s]| vec![(inner[a], s)]));
         for b in a + 1..k {
-            let j = inner[b];
-            let v = (at(reml, &[(i, 1.0), (j, 1.0)])
-                - at(reml, &[(i, 1.0), (j, -1.0)])
-                - at(reml, &[(i, -1.0), (j, 1.0)])
-                + at(reml, &[(i, -1.0), (j, -1.0)]))
-                / (4.0 * h * h);
+            for (s, t) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
+                steps.push(vec![(inner[a], s), (inner[b], t)]);
+            }
+        }
+    }
+    let points: Vec<[f64; 6]> = steps
+        .iter()
+        .map(|st| {
+            let mut y = *x;
+            for &(i, s) in st {
+                y[i] *= (s * h).exp();
+            }
+            y
+        })
+        .collect();
+    // Taken in order of the white shares: the returns are summed once per pair of them.
+    let mut order: Vec<usize> = (0..points.len()).collect();
+    order.sort_by(|&p, &q| {
+        let key = |y: &[f64; 6]| (y[4], y[5]);
+        key(&points[p])
+            .partial_cmp(&key(&points[q]))
+            .expect("finite")
+    });
+    let mut value = vec![f64::NAN; points.len()];
+    for &p in &order {
+        value[p] = reml.at(&points[p]).unwrap_or(f64::NAN);
+    }
+    let mut hess = DMatrix::<f64>::zeros(k, k);
+    let mut next = value.iter();
+    let mut take = || *next.next().expect("one value per point");
+    for a in 0..k {
+        hess[(a, a)] = (take() - 2.0 * best + take()) / (h * h);
+        for b in a + 1..k {
+            let v = (take() - take() - take() + take()) / (4.0 * h * h);
             hess[(a, b)] = v;
             hess[(b, a)] = v;
         }
@@ -520,10 +643,10 @@ pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance)
     }
     let residual_row =
         |o: &super::model::Observation, out: &mut Vec<(usize, f64)>| out.push((0, o.residual_m));
+    let layout = Layout::new(base, &selected);
     let chi2 = |y: &[f64; 6]| {
         let (tau, scale) = ([y[0], y[1]], [y[2], y[3]]);
-        let sums =
-            KnotSums::accumulate(base, &selected, 1, &residual_row, tau, scale, [y[4], y[5]]);
+        let sums = KnotSums::accumulate(base, &layout, 1, &residual_row, tau, scale, [y[4], y[5]]);
         sums.solve(tau, scale).0[(0, 0)]
     };
     let eig = s.symmetric_eigen();
