@@ -57,9 +57,10 @@ pub struct DiagnoseConfig {
     #[serde(default)]
     pub nav_attitude_white_share: Option<f64>,
     /// The navigation error model that `kinescan trajectory` exported with the SBET
-    /// (`output.error_model`, docs/trajectory.md): where the four keys above are absent, the
-    /// correlation times are fitted to its autocorrelation ([`fit_correlation_time`]) and the
-    /// scales are 1 (the SMRMSG is that smoother's own sigma). Absent: nothing is filled.
+    /// (`output.error_model`, docs/trajectory.md): where the six keys above are absent, the
+    /// correlation times are fitted to its autocorrelation ([`fit_correlation_time`]), the
+    /// scales are 1 (the SMRMSG is that smoother's own sigma) and the white shares 0 (its
+    /// model has no white term). Absent: nothing is filled.
     #[serde(default)]
     pub nav_error_model: Option<ConfigPath>,
     /// A reference with more than this share of its returns set aside as foreign is reported
