@@ -23,6 +23,7 @@
 use super::design::RowFn;
 use super::{white_nav_cov_m2, Observation, ObservationSet};
 use nalgebra::{DMatrix, Matrix6, SMatrix};
+use rayon::prelude::*;
 
 /// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
 /// bridge left out is small (0.1 s at 2 s^2 / tau = 1e-5 m^2/s: 0.5 mm) and its correlation
@@ -189,29 +190,52 @@ pub(crate) fn gram_and_log_det(
 
 /// The returns on the selected references summed knot by knot, their independent variances
 /// `D` (scanner, white navigation noise and bridge) fixed at the correlation times, scales and
-/// white shares they were accumulated with: all that `X^T C^-1 X` and `ln det C` need besides the knots' prior, so that the
-/// likelihood of the nuisance (`app::diagnose::nuisance`) costs O(K 6 p^2) per evaluation
-/// instead of a pass over the returns.
+/// white shares they were accumulated with: all that `X^T C^-1 X` and `ln det C` need besides
+/// the knots' prior, so that the likelihood of the nuisance (`app::diagnose::nuisance`) costs
+/// O(K 6 p^2) per evaluation instead of a pass over the returns.
 pub(crate) struct KnotSums {
     /// Knots (grid indices, ascending) and their sigmas before any scale.
     idx: Vec<i64>,
     sigma: Vec<[f64; 6]>,
+    /// The sums over all knots (`first_knot` 0).
+    sums: Sums,
+}
+
+/// Pieces the returns are summed in, in parallel, and then added in order: a fixed number, so
+/// that the rounding of the sums (and every byte written from them) does not depend on the
+/// number of threads.
+const PIECES: usize = 32;
+/// Pieces summed side by side before they are added (each holds `B` over its own knots).
+const PIECES_AT_ONCE: usize = 4;
+
+/// Sums over the returns whose knots lie in `first_knot ..= first_knot + h_d_h_diag.len() - 1`.
+struct Sums {
+    first_knot: usize,
     /// `X^T D^-1 X` (`p x p`).
     x_d_x: DMatrix<f64>,
     /// Diagonal and next-knot blocks of `H^T D^-1 H`.
     h_d_h_diag: Vec<Matrix6<f64>>,
     h_d_h_next: Vec<Matrix6<f64>>,
-    /// `B = H^T D^-1 X` (`6 K x p`).
+    /// `B = H^T D^-1 X` (`6 K x p`, `K` the knots of the range).
     h_d_x: DMatrix<f64>,
     /// `ln det D`.
     log_det_d: f64,
+}
+
+/// What a return's independent variance needs besides the return: the bridge's correlation
+/// times and scales (position, attitude) and the white navigation variance per component.
+struct Noise<'a> {
+    set: &'a ObservationSet,
+    tau: [f64; 2],
+    scale: [f64; 2],
+    white_var: [f64; 6],
 }
 
 impl KnotSums {
     /// Sums over the returns on `selected`, `D` at correlation times `tau`, the navigation
     /// sigmas scaled by `scale` and white navigation noise of shares `white` (position,
     /// attitude) of the set's navigation variances ([`ObservationSet::white_nav_var`]; not
-    /// scaled).
+    /// scaled). The returns are summed in [`PIECES`] pieces in parallel.
     pub(crate) fn accumulate(
         set: &ObservationSet,
         layout: &Layout,
@@ -221,25 +245,113 @@ impl KnotSums {
         scale: [f64; 2],
         white: [f64; 2],
     ) -> Self {
-        let nk = layout.idx.len();
-        let mut s = KnotSums {
-            x_d_x: DMatrix::zeros(p, p),
-            h_d_h_diag: vec![Matrix6::zeros(); nk],
-            h_d_h_next: vec![Matrix6::zeros(); nk.saturating_sub(1)],
-            h_d_x: DMatrix::zeros(6 * nk, p),
-            log_det_d: 0.0,
+        let noise = Noise {
+            set,
+            tau,
+            scale,
+            white_var: set.white_nav_var(white),
+        };
+        let bounds = piece_bounds(&layout.rows);
+        let mut sums = Sums::zeros(0, layout.idx.len(), p);
+        // A few pieces at a time, so that their knot blocks add little to the total's memory.
+        for batch in bounds.windows(2).collect::<Vec<_>>().chunks(PIECES_AT_ONCE) {
+            let pieces: Vec<Sums> = batch
+                .par_iter()
+                .map(|w| Sums::over(&layout.rows[w[0]..w[1]], p, row, &noise))
+                .collect();
+            for piece in &pieces {
+                sums.add(piece);
+            }
+        }
+        KnotSums {
             idx: layout.idx.clone(),
             sigma: layout.sigma.clone(),
-        };
-        let white_var = set.white_nav_var(white);
-        let mut entries = Vec::new();
-        for group in layout
-            .rows
-            .chunk_by(|a, b| a.group.is_some() && a.group == b.group)
-        {
-            s.add_group(set, group, row, (tau, scale), &white_var, &mut entries);
+            sums,
         }
-        s
+    }
+
+    /// `X^T C^-1 X` and `ln det C` with the knots' prior at correlation times `tau` and the
+    /// navigation sigmas scaled by `scale` (exact when they are the values accumulated with;
+    /// elsewhere `D`'s bridge variances stay at those values).
+    pub(crate) fn solve(&self, tau: [f64; 2], scale: [f64; 2]) -> (DMatrix<f64>, f64) {
+        let sigma: Vec<[f64; 6]> = self
+            .sigma
+            .iter()
+            .map(|s| std::array::from_fn(|k| s[k] * scale[k / 3]))
+            .collect();
+        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, tau);
+        let m_diag: Vec<Matrix6<f64>> = q_diag
+            .iter()
+            .zip(&self.sums.h_d_h_diag)
+            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
+            .collect();
+        let m_next: Vec<Matrix6<f64>> = q_next
+            .iter()
+            .zip(&self.sums.h_d_h_next)
+            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
+            .collect();
+        let (whitened, log_det_m) = whitened_gram(&m_diag, &m_next, &self.sums.h_d_x);
+        // ln det Q = -ln det(prior covariance).
+        let log_det_c = self.sums.log_det_d + log_det_m + prior_log_det(&self.idx, &sigma, tau);
+        (&self.sums.x_d_x - whitened, log_det_c)
+    }
+}
+
+/// Where the pieces of `rows` begin (and the last ends): [`PIECES`] of about equal size, each
+/// boundary moved on to the next group so that a group is summed whole.
+fn piece_bounds(rows: &[Row]) -> Vec<usize> {
+    let same_group = |i: usize| rows[i].group.is_some() && rows[i].group == rows[i - 1].group;
+    let mut bounds = vec![0];
+    for i in 1..PIECES {
+        let mut b = (i * rows.len() / PIECES).max(*bounds.last().expect("starts at 0"));
+        while b > 0 && b < rows.len() && same_group(b) {
+            b += 1;
+        }
+        if b > *bounds.last().expect("starts at 0") && b < rows.len() {
+            bounds.push(b);
+        }
+    }
+    bounds.push(rows.len());
+    bounds
+}
+
+impl Sums {
+    fn zeros(first_knot: usize, knots: usize, p: usize) -> Self {
+        Sums {
+            first_knot,
+            x_d_x: DMatrix::zeros(p, p),
+            h_d_h_diag: vec![Matrix6::zeros(); knots],
+            h_d_h_next: vec![Matrix6::zeros(); knots.saturating_sub(1)],
+            h_d_x: DMatrix::zeros(6 * knots, p),
+            log_det_d: 0.0,
+        }
+    }
+
+    /// Sums over `rows` (whole groups), on the knots they touch.
+    fn over(rows: &[Row], p: usize, row: &RowFn, noise: &Noise) -> Self {
+        let first = rows.iter().map(|r| r.knot).min().unwrap_or(0);
+        let knots = rows.iter().map(|r| r.knot + 2 - first).max().unwrap_or(0);
+        let mut sums = Sums::zeros(first, knots, p);
+        let mut entries = Vec::new();
+        for group in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
+            sums.add_group(group, row, noise, &mut entries);
+        }
+        sums
+    }
+
+    /// Adds the sums of `piece` (on its knots) to these.
+    fn add(&mut self, piece: &Sums) {
+        let off = piece.first_knot - self.first_knot;
+        self.x_d_x += &piece.x_d_x;
+        self.log_det_d += piece.log_det_d;
+        for (j, b) in piece.h_d_h_diag.iter().enumerate() {
+            self.h_d_h_diag[off + j] += b;
+        }
+        for (j, b) in piece.h_d_h_next.iter().enumerate() {
+            self.h_d_h_next[off + j] += b;
+        }
+        let mut b = self.h_d_x.view_mut((6 * off, 0), piece.h_d_x.shape());
+        b += &piece.h_d_x;
     }
 
     /// Adds returns that share their white navigation noise (or one return): their
@@ -247,22 +359,21 @@ impl KnotSums {
     /// and the rows `L^-1 [X H]` added as independent rows of unit variance.
     fn add_group(
         &mut self,
-        set: &ObservationSet,
         group: &[Row],
         row: &RowFn,
-        (tau, scale): ([f64; 2], [f64; 2]),
-        white_var: &[f64; 6],
+        noise: &Noise,
         entries: &mut Vec<(usize, f64)>,
     ) {
+        let white_var = &noise.white_var;
         let var = |r: &Row| {
-            let nav_var = &set.visits[r.o.visit].nav_cov;
-            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, tau, scale)
+            let nav_var = &noise.set.visits[r.o.visit].nav_cov;
+            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, noise.tau, noise.scale)
         };
         let h_of = |r: &Row| {
             let g = SMatrix::<f64, 6, 1>::from_column_slice(&r.o.nav_gradient);
             (g * (1.0 - r.w), g * r.w)
         };
-        let knot = group[0].knot;
+        let knot = group[0].knot - self.first_knot;
         entries.clear();
         if let [r] = group {
             // One return: `L` is its standard deviation.
@@ -321,7 +432,7 @@ impl KnotSums {
     }
 
     /// Adds a row of unit variance: `x` (sparse columns), navigation rows `hl`, `hr` on knots
-    /// `knot`, `knot + 1`.
+    /// `knot`, `knot + 1` (counted from `first_knot`).
     fn add_unit_row(
         &mut self,
         knot: usize,
@@ -346,32 +457,6 @@ impl KnotSums {
                 b[6 + k] += hr[k] * xa;
             }
         }
-    }
-
-    /// `X^T C^-1 X` and `ln det C` with the knots' prior at correlation times `tau` and the
-    /// navigation sigmas scaled by `scale` (exact when they are the values accumulated with;
-    /// elsewhere `D`'s bridge variances stay at those values).
-    pub(crate) fn solve(&self, tau: [f64; 2], scale: [f64; 2]) -> (DMatrix<f64>, f64) {
-        let sigma: Vec<[f64; 6]> = self
-            .sigma
-            .iter()
-            .map(|s| std::array::from_fn(|k| s[k] * scale[k / 3]))
-            .collect();
-        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, tau);
-        let m_diag: Vec<Matrix6<f64>> = q_diag
-            .iter()
-            .zip(&self.h_d_h_diag)
-            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
-            .collect();
-        let m_next: Vec<Matrix6<f64>> = q_next
-            .iter()
-            .zip(&self.h_d_h_next)
-            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
-            .collect();
-        let (whitened, log_det_m) = whitened_gram(&m_diag, &m_next, &self.h_d_x);
-        // ln det Q = -ln det(prior covariance).
-        let log_det_c = self.log_det_d + log_det_m + prior_log_det(&self.idx, &sigma, tau);
-        (&self.x_d_x - whitened, log_det_c)
     }
 }
 
@@ -494,6 +579,30 @@ mod tests {
             d < 1e-8 * dense_log_det.abs(),
             "ln det C {fast_log_det} vs dense {dense_log_det}"
         );
+    }
+
+    /// The pieces summed in parallel cover every return once and never split the returns
+    /// that share a record's white noise.
+    #[test]
+    fn pieces_cover_the_returns_and_keep_groups_whole() {
+        let set = draw(
+            &Scenario {
+                returns_per_profile: Some(3),
+                ..Default::default()
+            },
+            4,
+        );
+        let layout = Layout::new(&set, &vec![true; set.reference_ids.len()]);
+        let bounds = piece_bounds(&layout.rows);
+        assert_eq!(bounds.first(), Some(&0));
+        assert_eq!(bounds.last(), Some(&layout.rows.len()));
+        assert!(bounds.len() > 2 && bounds.len() <= PIECES + 1, "{bounds:?}");
+        for w in bounds.windows(2) {
+            assert!(w[0] < w[1], "{bounds:?}");
+            let (a, b) = (&layout.rows[w[1] - 1], layout.rows.get(w[1]));
+            assert!(b.is_none_or(|b| a.group.is_none() || a.group != b.group));
+        }
+        assert_eq!(piece_bounds(&[]), vec![0, 0]);
     }
 
     /// Sums accumulated on the unscaled set with a scale equal the sums of the set whose
