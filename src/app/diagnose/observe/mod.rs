@@ -553,6 +553,9 @@ fn thin_evenly(run: &[Hit], max: usize) -> Vec<Hit> {
     (0..max).map(|k| run[k * run.len() / max]).collect()
 }
 
+/// Visits observed side by side in [`second_pass`] before their observations join the set.
+const VISIT_BATCH: usize = 256;
+
 /// Computes the observations and visit covariances of the kept returns.
 fn second_pass(
     p: &LoadedPipeline,
@@ -577,21 +580,6 @@ fn second_pass(
         reference_of[k] = Some(reference_ids.len());
         reference_ids.push(patches[k].id.clone());
     }
-    let per_visit: Vec<Result<(Visit, Vec<Observation>)>> = visits
-        .par_iter()
-        .enumerate()
-        .map(|(v, pv)| {
-            let reference = reference_of[pv.patch].expect("listed above");
-            observe_visit(
-                &models[pv.pass],
-                &files[pv.pass].file,
-                index,
-                pv,
-                v,
-                reference,
-            )
-        })
-        .collect();
     let mut set = ObservationSet {
         reference_ids,
         passes: files.len(),
@@ -599,10 +587,34 @@ fn second_pass(
         nav_tau_s: Some(models[0].nav_tau_s),
         ..Default::default()
     };
-    for r in per_visit {
-        let (visit, obs) = r?;
-        set.visits.push(visit);
-        set.observations.extend(obs);
+    // One observation per hit: the set takes its final size at once, and the visits are
+    // observed a batch at a time, so that only a batch's observations exist twice (growing
+    // the set by doubling beside every visit's observations had been the diagnosis' peak).
+    set.observations
+        .reserve_exact(visits.iter().map(|v| v.hits.len()).sum());
+    set.visits.reserve_exact(visits.len());
+    for (b, batch) in visits.chunks(VISIT_BATCH).enumerate() {
+        let per_visit: Vec<Result<(Visit, Vec<Observation>)>> = batch
+            .par_iter()
+            .enumerate()
+            .map(|(k, pv)| {
+                let reference = reference_of[pv.patch].expect("listed above");
+                let v = b * VISIT_BATCH + k;
+                observe_visit(
+                    &models[pv.pass],
+                    &files[pv.pass].file,
+                    index,
+                    pv,
+                    v,
+                    reference,
+                )
+            })
+            .collect();
+        for r in per_visit {
+            let (visit, obs) = r?;
+            set.visits.push(visit);
+            set.observations.extend(obs);
+        }
     }
     counts.observations = set.observations.len() as u64;
     Ok(set)
