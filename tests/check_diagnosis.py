@@ -43,6 +43,13 @@ for name, v in d["detectable"].items():
 for k in ("position_tau_s", "attitude_tau_s", "position_scale", "attitude_scale"):
     p = d["nuisance"][k]
     assert p["source"] in ("estimated", "configured") and p["value"] > 0, (k, p)
+# The second, slow process: null (not searched) or searched, with its test and four values.
+slow = d["nuisance"]["slow"]
+if slow is not None:
+    assert isinstance(slow["used"], bool) and slow["lr_threshold"] > 0, slow
+    assert slow["used"] or slow["lr_statistic"] <= slow["lr_threshold"], slow
+    for k in ("position_share", "attitude_share", "position_tau_s", "attitude_tau_s"):
+        assert slow[k]["source"] in ("estimated", "configured") and slow[k]["value"] >= 0, (k, slow)
 assert (out / "summary.md").read_text().startswith("# Diagnosis of ")
 for png in d["plots"]:
     assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", png

@@ -125,6 +125,10 @@ impl Learned {
             attitude_scale: cfg.nav_attitude_scale,
             position_white_share: cfg.nav_position_white_share,
             attitude_white_share: cfg.nav_attitude_white_share,
+            position_slow_share: cfg.nav_position_slow_share,
+            attitude_slow_share: cfg.nav_attitude_slow_share,
+            position_slow_tau_s: cfg.nav_position_slow_tau_s,
+            attitude_slow_tau_s: cfg.nav_attitude_slow_tau_s,
         };
         let start = screened
             .nav_tau_s

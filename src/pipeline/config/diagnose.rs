@@ -56,11 +56,27 @@ pub struct DiagnoseConfig {
     /// SMRMSG attitude variance. Absent: estimated.
     #[serde(default)]
     pub nav_attitude_white_share: Option<f64>,
+    /// Variance of a second, slow position error process, as a share of the SMRMSG position
+    /// variance (docs/diagnosis.md, "Two time scales"); 0: no second process. Absent:
+    /// estimated on a survey long enough to tell, used where the data need it.
+    #[serde(default)]
+    pub nav_position_slow_share: Option<f64>,
+    /// Variance of a second, slow attitude error process, as a share of the SMRMSG attitude
+    /// variance; 0: none. Absent: estimated.
+    #[serde(default)]
+    pub nav_attitude_slow_share: Option<f64>,
+    /// Correlation time of the slow position error process (s). Absent: estimated.
+    #[serde(default)]
+    pub nav_position_slow_tau_s: Option<f64>,
+    /// Correlation time of the slow attitude error process (s). Absent: estimated.
+    #[serde(default)]
+    pub nav_attitude_slow_tau_s: Option<f64>,
     /// The navigation error model that `kinescan trajectory` exported with the SBET
-    /// (`output.error_model`, docs/trajectory.md): where the six keys above are absent, the
+    /// (`output.error_model`, docs/trajectory.md): where the keys above are absent, the
     /// correlation times are fitted to its autocorrelation ([`fit_correlation_time`]), the
-    /// scales are 1 (the SMRMSG is that smoother's own sigma) and the white shares 0 (its
-    /// model has no white term). Absent: nothing is filled.
+    /// scales are 1 (the SMRMSG is that smoother's own sigma) and the white and slow shares 0
+    /// (its model has no white term and one process per component). Absent: nothing is
+    /// filled.
     #[serde(default)]
     pub nav_error_model: Option<ConfigPath>,
     /// A reference with more than this share of its returns set aside as foreign is reported
@@ -256,9 +272,11 @@ impl DiagnoseConfig {
         self.nav_attitude_tau_s.get_or_insert(attitude);
         self.nav_position_scale.get_or_insert(1.0);
         self.nav_attitude_scale.get_or_insert(1.0);
-        // The smoother's own model has no white term.
+        // The smoother's own model has no white term and one process per component.
         self.nav_position_white_share.get_or_insert(0.0);
         self.nav_attitude_white_share.get_or_insert(0.0);
+        self.nav_position_slow_share.get_or_insert(0.0);
+        self.nav_attitude_slow_share.get_or_insert(0.0);
         Ok(())
     }
 
@@ -277,6 +295,14 @@ impl DiagnoseConfig {
             ("diagnose.nav_attitude_tau_s", self.nav_attitude_tau_s),
             ("diagnose.nav_position_scale", self.nav_position_scale),
             ("diagnose.nav_attitude_scale", self.nav_attitude_scale),
+            (
+                "diagnose.nav_position_slow_tau_s",
+                self.nav_position_slow_tau_s,
+            ),
+            (
+                "diagnose.nav_attitude_slow_tau_s",
+                self.nav_attitude_slow_tau_s,
+            ),
         ];
         require_positive(optional.into_iter().filter_map(|(k, v)| Some((k, v?))))?;
         for (key, v) in [
@@ -287,6 +313,14 @@ impl DiagnoseConfig {
             (
                 "diagnose.nav_attitude_white_share",
                 self.nav_attitude_white_share,
+            ),
+            (
+                "diagnose.nav_position_slow_share",
+                self.nav_position_slow_share,
+            ),
+            (
+                "diagnose.nav_attitude_slow_share",
+                self.nav_attitude_slow_share,
             ),
         ] {
             if let Some(v) = v.filter(|v| !(v.is_finite() && *v >= 0.0)) {

@@ -10,24 +10,30 @@
 //! along the return's gradient, `q = 2 s^2 / tau`) is added to the return's independent
 //! variance. A return's residual is then `x theta + h^T u + e`, `u` the knot values
 //! (`h`: the navigation gradient times the two interpolation weights), `e ~ N(0, D)`. `D` is
-//! block diagonal: the white navigation noise of one trajectory record
-//! ([`ObservationSet::nav_white_share`]) is shared by the returns interpolated between the
-//! same two records, whose block is whitened by its Cholesky factor before it is summed.
+//! block diagonal: the returns interpolated between the same two trajectory records share
+//! their bridge (covariance `q min(w) (1 - max(w)) KNOT_S`, `w` the weights of the right
+//! knot) and the white navigation noise of the records ([`ObservationSet::nav_white_share`]),
+//! and such a group's block is whitened by its Cholesky factor before it is summed. The bridge
+//! between returns of different groups (other records within the same 0.1 s) is left out.
 //!
 //! The knots of one component form a Markov chain: the prior precision `Q` of `u` is block
 //! tridiagonal (6 x 6 blocks, knots in time order), and so is `M = Q + H^T D^-1 H`, since a
 //! return touches two neighbouring knots. `X^T C^-1 X = X^T D^-1 X - B^T M^-1 B`,
 //! `B = H^T D^-1 X`, with `M` factorised by block Cholesky: O(n p^2 + K 6^3 p) for `n` returns,
 //! `p` columns and `K` knots, whatever the survey's length.
+//!
+//! A second, slow process per block ([`ObservationSet::nav_slow`]) is a second chain on the
+//! same knots: the knot state is then the two processes' values (12 x 12 blocks), a return's
+//! row the same gradient on both (`H^T D^-1 H` and `B` repeat), and only the solve changes.
 
 use super::design::RowFn;
-use super::{white_nav_cov_m2, Observation, ObservationSet};
+use super::{white_nav_cov_m2, Observation, ObservationSet, SlowNav};
 use nalgebra::{DMatrix, Matrix6, SMatrix};
 use rayon::prelude::*;
 
 /// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
-/// bridge left out is small (0.1 s at 2 s^2 / tau = 1e-5 m^2/s: 0.5 mm) and its correlation
-/// within 0.1 s, unlike a visit's whole drift, matters little.
+/// bridge is small (0.1 s at 2 s^2 / tau = 1e-5 m^2/s: 0.5 mm) and its correlation between
+/// returns of different records within 0.1 s, unlike a visit's whole drift, matters little.
 pub const KNOT_S: f64 = 0.1;
 
 /// Smallest sigma a knot gets (m or rad): a component without error would make `Q` infinite.
@@ -103,23 +109,61 @@ impl<'a> Layout<'a> {
     }
 }
 
-/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient, the
-/// navigation variances scaled by `scale` (position, attitude block).
-fn bridge_var_m2(
-    o: &Observation,
-    nav_var: &[[f64; 6]; 6],
-    w: f64,
-    tau: [f64; 2],
-    scale: [f64; 2],
+/// The navigation error process that the knots' prior and the bridge variances are taken at,
+/// relative to the navigation covariances of the set it is applied to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Process {
+    /// Correlation times of the first process (s; position, attitude block).
+    pub tau: [f64; 2],
+    /// Scale of its sigmas (position, attitude block).
+    pub scale: [f64; 2],
+    /// The second, slow process: its shares are of the unscaled variances.
+    pub slow: Option<SlowNav>,
+}
+
+impl Process {
+    /// The process a set declares (scales 1).
+    pub(crate) fn of(set: &ObservationSet, tau: [f64; 2]) -> Self {
+        Process {
+            tau,
+            scale: [1.0; 2],
+            slow: set.nav_slow,
+        }
+    }
+}
+
+/// Covariance (m^2) of the Brownian bridges between the knots of two returns on the same
+/// knot interval (at weights `w1`, `w2` of the right knot) along their gradients, of both
+/// processes of `process`, the navigation variances `nav_var1`, `nav_var2` of their visits:
+/// `q KNOT_S min(w) (1 - max(w))` per component, `q` the diffusion; with `w1 = w2` and one
+/// return, its variance. Zero beyond the right knot (a group's extrapolation, at most a record
+/// interval).
+fn bridge_cov_m2(
+    (o1, nav_var1, w1): (&Observation, &[[f64; 6]; 6], f64),
+    (o2, nav_var2, w2): (&Observation, &[[f64; 6]; 6], f64),
+    process: &Process,
 ) -> f64 {
-    // Zero beyond the right knot (a group's extrapolation, at most a record interval).
-    let shape = (w * (1.0 - w)).max(0.0) * KNOT_S;
+    let shape = (w1.min(w2) * (1.0 - w1.max(w2))).max(0.0) * KNOT_S;
+    if shape == 0.0 {
+        return 0.0;
+    }
     (0..6)
         .map(|k| {
-            let a = scale[k / 3];
-            o.nav_gradient[k].powi(2) * 2.0 * a * a * nav_var[k][k].max(0.0) / tau[k / 3] * shape
+            let b = k / 3;
+            let a2 = process.scale[b] * process.scale[b];
+            let mut diffusion = 2.0 * a2 / process.tau[b];
+            if let Some(slow) = &process.slow {
+                diffusion += 2.0 * slow.share[b] / slow.tau_s[b];
+            }
+            let var = (nav_var1[k][k].max(0.0) * nav_var2[k][k].max(0.0)).sqrt();
+            o1.nav_gradient[k] * o2.nav_gradient[k] * diffusion * var * shape
         })
         .sum()
+}
+
+/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient.
+fn bridge_var_m2(o: &Observation, nav_var: &[[f64; 6]; 6], w: f64, process: &Process) -> f64 {
+    bridge_cov_m2((o, nav_var, w), (o, nav_var, w), process)
 }
 
 /// The prior precision `Q` of the knot values: diagonal blocks and the blocks coupling each
@@ -184,8 +228,8 @@ pub(crate) fn gram_and_log_det(
     tau: [f64; 2],
 ) -> (DMatrix<f64>, f64) {
     let layout = Layout::new(set, selected);
-    KnotSums::accumulate(set, &layout, p, row, tau, [1.0; 2], set.nav_white_share)
-        .solve(tau, [1.0; 2])
+    let process = Process::of(set, tau);
+    KnotSums::accumulate(set, &layout, p, row, &process, set.nav_white_share).solve(&process)
 }
 
 /// The returns on the selected references summed knot by knot, their independent variances
@@ -226,29 +270,26 @@ struct Sums {
 /// times and scales (position, attitude) and the white navigation variance per component.
 struct Noise<'a> {
     set: &'a ObservationSet,
-    tau: [f64; 2],
-    scale: [f64; 2],
+    process: Process,
     white_var: [f64; 6],
 }
 
 impl KnotSums {
-    /// Sums over the returns on `selected`, `D` at correlation times `tau`, the navigation
-    /// sigmas scaled by `scale` and white navigation noise of shares `white` (position,
-    /// attitude) of the set's navigation variances ([`ObservationSet::white_nav_var`]; not
-    /// scaled). The returns are summed in [`PIECES`] pieces in parallel.
+    /// Sums over the returns on `selected`, `D`'s bridge variances at `process` and white
+    /// navigation noise of shares `white` (position, attitude) of the set's navigation
+    /// variances ([`ObservationSet::white_nav_var`]; not scaled). The returns are summed in
+    /// [`PIECES`] pieces in parallel.
     pub(crate) fn accumulate(
         set: &ObservationSet,
         layout: &Layout,
         p: usize,
         row: &RowFn,
-        tau: [f64; 2],
-        scale: [f64; 2],
+        process: &Process,
         white: [f64; 2],
     ) -> Self {
         let noise = Noise {
             set,
-            tau,
-            scale,
+            process: *process,
             white_var: set.white_nav_var(white),
         };
         let bounds = piece_bounds(&layout.rows);
@@ -270,29 +311,72 @@ impl KnotSums {
         }
     }
 
-    /// `X^T C^-1 X` and `ln det C` with the knots' prior at correlation times `tau` and the
-    /// navigation sigmas scaled by `scale` (exact when they are the values accumulated with;
-    /// elsewhere `D`'s bridge variances stay at those values).
-    pub(crate) fn solve(&self, tau: [f64; 2], scale: [f64; 2]) -> (DMatrix<f64>, f64) {
+    /// `X^T C^-1 X` and `ln det C` with the knots' prior at `process` (exact at the process
+    /// accumulated with; elsewhere `D`'s bridge variances stay at that one).
+    pub(crate) fn solve(&self, process: &Process) -> (DMatrix<f64>, f64) {
+        let p = self.sums.x_d_x.nrows();
         let sigma: Vec<[f64; 6]> = self
             .sigma
             .iter()
-            .map(|s| std::array::from_fn(|k| s[k] * scale[k / 3]))
+            .map(|s| std::array::from_fn(|k| s[k] * process.scale[k / 3]))
             .collect();
-        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, tau);
-        let m_diag: Vec<Matrix6<f64>> = q_diag
-            .iter()
-            .zip(&self.sums.h_d_h_diag)
-            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
-            .collect();
-        let m_next: Vec<Matrix6<f64>> = q_next
-            .iter()
-            .zip(&self.sums.h_d_h_next)
-            .map(|(d, h)| Matrix6::from_diagonal(&(*d).into()) + h)
-            .collect();
-        let (whitened, log_det_m) = whitened_gram(&m_diag, &m_next, &self.sums.h_d_x);
+        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, process.tau);
         // ln det Q = -ln det(prior covariance).
-        let log_det_c = self.sums.log_det_d + log_det_m + prior_log_det(&self.idx, &sigma, tau);
+        let mut log_det_c = self.sums.log_det_d + prior_log_det(&self.idx, &sigma, process.tau);
+        let plus = |q: &[f64; 6], h: &Matrix6<f64>| Matrix6::from_diagonal(&(*q).into()) + h;
+        let (whitened, log_det_m) = match &process.slow {
+            None => {
+                let m_diag: Vec<Matrix6<f64>> = q_diag
+                    .iter()
+                    .zip(&self.sums.h_d_h_diag)
+                    .map(|(q, h)| plus(q, h))
+                    .collect();
+                let m_next: Vec<Matrix6<f64>> = q_next
+                    .iter()
+                    .zip(&self.sums.h_d_h_next)
+                    .map(|(q, h)| plus(q, h))
+                    .collect();
+                whitened_gram(&m_diag, &m_next, p, |j| {
+                    self.sums.h_d_x.rows(6 * j, 6).into_owned()
+                })
+            }
+            Some(slow) => {
+                let slow_sigma: Vec<[f64; 6]> = self
+                    .sigma
+                    .iter()
+                    .map(|s| {
+                        std::array::from_fn(|k| (s[k] * slow.share[k / 3].sqrt()).max(MIN_SIGMA))
+                    })
+                    .collect();
+                let (s_diag, s_next) = prior_precision(&self.idx, &slow_sigma, slow.tau_s);
+                log_det_c += prior_log_det(&self.idx, &slow_sigma, slow.tau_s);
+                let two = |q: &[f64; 6], s: &[f64; 6], h: &Matrix6<f64>| {
+                    let mut m = SMatrix::<f64, 12, 12>::zeros();
+                    for (r, c) in [(0, 0), (0, 6), (6, 0), (6, 6)] {
+                        m.fixed_view_mut::<6, 6>(r, c).copy_from(h);
+                    }
+                    for k in 0..6 {
+                        m[(k, k)] += q[k];
+                        m[(6 + k, 6 + k)] += s[k];
+                    }
+                    m
+                };
+                let m_diag: Vec<SMatrix<f64, 12, 12>> = (0..q_diag.len())
+                    .map(|j| two(&q_diag[j], &s_diag[j], &self.sums.h_d_h_diag[j]))
+                    .collect();
+                let m_next: Vec<SMatrix<f64, 12, 12>> = (0..q_next.len())
+                    .map(|j| two(&q_next[j], &s_next[j], &self.sums.h_d_h_next[j]))
+                    .collect();
+                whitened_gram(&m_diag, &m_next, p, |j| {
+                    let b = self.sums.h_d_x.rows(6 * j, 6);
+                    let mut out = DMatrix::zeros(12, b.ncols());
+                    out.rows_mut(0, 6).copy_from(&b);
+                    out.rows_mut(6, 6).copy_from(&b);
+                    out
+                })
+            }
+        };
+        log_det_c += log_det_m;
         (&self.sums.x_d_x - whitened, log_det_c)
     }
 }
@@ -367,7 +451,7 @@ impl Sums {
         let white_var = &noise.white_var;
         let var = |r: &Row| {
             let nav_var = &noise.set.visits[r.o.visit].nav_cov;
-            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, noise.tau, noise.scale)
+            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &noise.process)
         };
         let h_of = |r: &Row| {
             let g = SMatrix::<f64, 6, 1>::from_column_slice(&r.o.nav_gradient);
@@ -408,7 +492,17 @@ impl Sums {
             h.view_mut((a, 6), (1, 6)).copy_from(&hr.transpose());
             d[(a, a)] = var(r);
             for (b, q) in group[..=a].iter().enumerate() {
-                let c = white_nav_cov_m2(r.o, q.o, white_var);
+                // The bridge of one return is in `var`; two returns between the same records
+                // share theirs (the same knot interval, a few ms apart).
+                let mut c = white_nav_cov_m2(r.o, q.o, white_var);
+                if b != a {
+                    let nav_var = |r: &Row| &noise.set.visits[r.o.visit].nav_cov;
+                    c += bridge_cov_m2(
+                        (r.o, nav_var(r), r.w),
+                        (q.o, nav_var(q), q.w),
+                        &noise.process,
+                    );
+                }
                 d[(a, b)] += c;
                 if b != a {
                     d[(b, a)] += c;
@@ -460,22 +554,23 @@ impl Sums {
     }
 }
 
-/// `B^T M^-1 B` for the symmetric positive definite block-tridiagonal `M` (diagonal blocks
-/// `diag`, `next[j]` = the block of row `j`, column `j + 1`): block Cholesky `M = L L^T`,
-/// `Y = L^-1 B` by forward substitution, `Y^T Y`; and `ln det M = 2 sum ln diag L`.
-fn whitened_gram(
-    diag: &[Matrix6<f64>],
-    next: &[Matrix6<f64>],
-    b: &DMatrix<f64>,
+/// `B^T M^-1 B` for the symmetric positive definite block-tridiagonal `M` (`N x N` diagonal
+/// blocks `diag`, `next[j]` = the block of row `j`, column `j + 1`; `b(j)` the `N` rows of `B`
+/// at knot `j`): block Cholesky `M = L L^T`, `Y = L^-1 B` by forward substitution, `Y^T Y`;
+/// and `ln det M = 2 sum ln diag L`.
+fn whitened_gram<const N: usize>(
+    diag: &[SMatrix<f64, N, N>],
+    next: &[SMatrix<f64, N, N>],
+    p: usize,
+    b: impl Fn(usize) -> DMatrix<f64>,
 ) -> (DMatrix<f64>, f64) {
-    let p = b.ncols();
     let mut out = DMatrix::<f64>::zeros(p, p);
     let mut log_det = 0.0;
     // Carried from knot j - 1: L_{j, j-1} and Y_{j-1}.
-    let mut below: Option<(Matrix6<f64>, DMatrix<f64>)> = None;
+    let mut below: Option<(SMatrix<f64, N, N>, DMatrix<f64>)> = None;
     for (j, d) in diag.iter().enumerate() {
         let mut s = *d;
-        let mut rhs = b.rows(6 * j, 6).into_owned();
+        let mut rhs = b(j);
         if let Some((l_below, y_prev)) = &below {
             s -= l_below * l_below.transpose();
             rhs -= l_below * y_prev;
@@ -508,8 +603,10 @@ mod tests {
     use crate::app::diagnose::model::N_EFFECTS;
 
     /// Dense reference: `C = D + H Sigma H^T` with `Sigma` the Gauss-Markov covariance of the
-    /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses).
+    /// knots, `s_i s_j exp(-|t_i - t_j| / tau)` (whose inverse the block solve uses), plus
+    /// the slow process's `share s_i s_j exp(-|t_i - t_j| / tau_slow)`.
     fn dense_gram(set: &ObservationSet, selected: &[bool], tau: [f64; 2]) -> (DMatrix<f64>, f64) {
+        let process = Process::of(set, tau);
         let Layout { idx, rows, sigma } = Layout::new(set, selected);
         let (n, nk) = (rows.len(), idx.len());
         let mut h = DMatrix::<f64>::zeros(n, 6 * nk);
@@ -527,10 +624,14 @@ mod tests {
                 x[(i, col)] = v;
             }
             let nav_var = &set.visits[r.o.visit].nav_cov;
-            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, tau, [1.0; 2]);
+            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &process);
             let white_var = set.white_nav_var(set.nav_white_share);
             for (j, q) in rows.iter().enumerate() {
                 c[(i, j)] += white_nav_cov_m2(r.o, q.o, &white_var);
+                if j != i && r.group.is_some() && r.group == q.group {
+                    let q_var = &set.visits[q.o.visit].nav_cov;
+                    c[(i, j)] += bridge_cov_m2((r.o, nav_var, r.w), (q.o, q_var, q.w), &process);
+                }
             }
         }
         let prior = DMatrix::from_fn(6 * nk, 6 * nk, |i, j| {
@@ -539,7 +640,10 @@ mod tests {
                 return 0.0;
             }
             let dt = ((idx[i / 6] - idx[j / 6]) as f64 * KNOT_S).abs();
-            sigma[i / 6][ki] * sigma[j / 6][kj] * (-dt / tau[ki / 3]).exp()
+            let slow = set
+                .nav_slow
+                .map_or(0.0, |s| s.share[ki / 3] * (-dt / s.tau_s[ki / 3]).exp());
+            sigma[i / 6][ki] * sigma[j / 6][kj] * ((-dt / tau[ki / 3]).exp() + slow)
         });
         c += &h * prior * h.transpose();
         let chol = c.clone().cholesky().unwrap();
@@ -560,11 +664,21 @@ mod tests {
         );
         // Returns three to a profile share their records' white navigation noise.
         set.nav_white_share = [0.4, 0.2];
+        solve_equals_dense(&set, tau);
+        // A second, slow process per block: 12 x 12 knot blocks.
+        set.nav_slow = Some(SlowNav {
+            share: [0.7, 0.3],
+            tau_s: [900.0, 400.0],
+        });
+        solve_equals_dense(&set, tau);
+    }
+
+    fn solve_equals_dense(set: &ObservationSet, tau: [f64; 2]) {
         let mut selected = vec![false; set.reference_ids.len()];
         (selected[0], selected[1]) = (true, true);
         let (fast, fast_log_det) =
-            gram_and_log_det(&set, &selected, N_EFFECTS + 1, &catalogue_row, tau);
-        let (dense, dense_log_det) = dense_gram(&set, &selected, tau);
+            gram_and_log_det(set, &selected, N_EFFECTS + 1, &catalogue_row, tau);
+        let (dense, dense_log_det) = dense_gram(set, &selected, tau);
         let scale = crate::testing::max_abs(dense.iter().copied());
         // Both exact up to the rounding of a 240 x 240 inverse.
         let err = crate::testing::max_abs((fast - &dense).iter().copied());
@@ -625,8 +739,13 @@ mod tests {
         let p = N_EFFECTS + 1;
         let (want, want_log_det) = gram_and_log_det(&scaled, &selected, p, &catalogue_row, tau);
         let layout = Layout::new(&base, &selected);
-        let sums = KnotSums::accumulate(&base, &layout, p, &catalogue_row, tau, scale, [0.0; 2]);
-        let (got, got_log_det) = sums.solve(tau, scale);
+        let process = Process {
+            tau,
+            scale,
+            slow: None,
+        };
+        let sums = KnotSums::accumulate(&base, &layout, p, &catalogue_row, &process, [0.0; 2]);
+        let (got, got_log_det) = sums.solve(&process);
         let size = crate::testing::max_abs(want.iter().copied());
         let err = crate::testing::max_abs((&got - &want).iter().copied());
         // The same sums in another order of scaling: rounding only.
@@ -638,11 +757,10 @@ mod tests {
             &layout,
             p,
             &catalogue_row,
-            [60.0, 30.0],
-            [1.0; 2],
+            &Process::of(&base, [60.0, 30.0]),
             [0.0; 2],
         );
-        let (approx, _) = far.solve(tau, scale);
+        let (approx, _) = far.solve(&process);
         let rel = crate::testing::max_abs((&approx - &want).iter().copied()) / size;
         assert!(rel > 0.0 && rel < 0.05, "relative difference {rel:e}");
     }

@@ -21,17 +21,26 @@ impl ObservationSet {
             return Err(invalid("no observation set to join".into()));
         };
         if let Some(k) = sets.iter().position(|s| {
-            s.nav_tau_s != first.nav_tau_s || s.nav_white_share != first.nav_white_share
+            s.nav_tau_s != first.nav_tau_s
+                || s.nav_white_share != first.nav_white_share
+                || s.nav_slow != first.nav_slow
         }) {
+            let model = |s: &ObservationSet| {
+                format!(
+                    "nav_tau_s = {:?}, nav_white_share = {:?}, nav_slow = {:?}",
+                    s.nav_tau_s, s.nav_white_share, s.nav_slow
+                )
+            };
             return Err(invalid(format!(
-                "set {k} has nav_tau_s = {:?} and nav_white_share = {:?}, set 0 {:?} and {:?}: \
-                 surveys of one mount share one navigation error model",
-                sets[k].nav_tau_s, sets[k].nav_white_share, first.nav_tau_s, first.nav_white_share
+                "set {k} has {}, set 0 {}: surveys of one mount share one navigation error model",
+                model(&sets[k]),
+                model(first)
             )));
         }
         let mut joint = ObservationSet {
             nav_tau_s: first.nav_tau_s,
             nav_white_share: first.nav_white_share,
+            nav_slow: first.nav_slow,
             ..Default::default()
         };
         for set in sets {

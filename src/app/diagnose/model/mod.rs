@@ -211,6 +211,20 @@ pub struct ObservationSet {
     /// component's variance in `nav_cov` (position, attitude block; docs/diagnosis.md, "White
     /// navigation noise"). 0: none; more needs `nav_tau_s`.
     pub nav_white_share: [f64; 2],
+    /// A second, slow Gauss-Markov process per block beside the one of `nav_tau_s`
+    /// (docs/diagnosis.md, "Two time scales"). `None`: one process; `Some` needs `nav_tau_s`.
+    pub nav_slow: Option<SlowNav>,
+}
+
+/// The second, slow navigation error process of each block (position, attitude): component
+/// `k` gains `sqrt(share) s_k(t) xi_k(t)`, `s_k` its sigma in `nav_cov`, `xi_k` a unit
+/// first-order Gauss-Markov process of correlation time `tau_s`, independent of the first.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlowNav {
+    /// Variance as a share of each component's variance in `nav_cov` (position, attitude).
+    pub share: [f64; 2],
+    /// Correlation times (s; position, attitude).
+    pub tau_s: [f64; 2],
 }
 
 /// Column of `effect` in [`Observation::signature`].
@@ -358,6 +372,18 @@ impl ObservationSet {
                 self.nav_white_share
             )));
         }
+        if let Some(slow) = self.nav_slow {
+            let bad = |v: &[f64; 2], min_exclusive: bool| {
+                v.iter()
+                    .any(|x| !x.is_finite() || *x < 0.0 || (min_exclusive && *x == 0.0))
+            };
+            if bad(&slow.share, false) || bad(&slow.tau_s, true) || self.nav_tau_s.is_none() {
+                return Err(invalid(format!(
+                    "nav_slow = {slow:?} (shares finite and >= 0, correlation times finite and \
+                     > 0, and nav_tau_s set)"
+                )));
+            }
+        }
         if let Some(tau) = self.nav_tau_s {
             if tau.iter().any(|t| !t.is_finite() || *t <= 0.0) {
                 return Err(invalid(format!(
@@ -434,6 +460,7 @@ impl ObservationSet {
             passes: self.passes,
             nav_tau_s: self.nav_tau_s,
             nav_white_share: self.nav_white_share,
+            nav_slow: self.nav_slow,
         }
     }
 

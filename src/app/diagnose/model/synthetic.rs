@@ -35,6 +35,9 @@ pub struct Scenario {
     /// `Some(k)`: a visit's returns come `k` at a time in profiles [`PROFILE_S`] apart (and
     /// share their records' white navigation noise); `None`: each at its own random time.
     pub returns_per_profile: Option<usize>,
+    /// A second, slow Gauss-Markov process per block beside the one of `nav_tau_s` (its
+    /// shares of the declared variances); the drawn set does not declare it.
+    pub nav_slow: Option<SlowNav>,
 }
 
 /// Rate of the drawn trajectory records (Hz): the simulator's SBET rate.
@@ -58,6 +61,7 @@ impl Default for Scenario {
             nav_scale: [1.0, 1.0],
             nav_white: [0.0, 0.0],
             returns_per_profile: None,
+            nav_slow: None,
         }
     }
 }
@@ -237,7 +241,19 @@ pub fn fill_residuals(set: &mut ObservationSet, s: &Scenario, seed: u64) {
                 .map(|o| per_visit[o.visit])
                 .collect()
         }
-        Some(tau) => gauss_markov(set, tau, s.nav_scale, &mut rng),
+        Some(tau) => {
+            let mut z = gauss_markov(set, tau, s.nav_scale, &mut rng);
+            if let Some(slow) = s.nav_slow {
+                let scale = slow.share.map(f64::sqrt);
+                for (z, z2) in z
+                    .iter_mut()
+                    .zip(gauss_markov(set, slow.tau_s, scale, &mut rng))
+                {
+                    z.iter_mut().zip(z2).for_each(|(a, b)| *a += b);
+                }
+            }
+            z
+        }
     };
     // Each record's white navigation noise (unit normals per component), drawn when first
     // needed.

@@ -9,16 +9,18 @@
 //!
 //! The model is the continuous-time one of [`super::model::continuous`]: component `k` of the error
 //! is `a_b s_k(t) zeta_k(t)`, `s_k` the SMRMSG sigma, `a_b` the scale of its block (position or
-//! attitude), `zeta_k` a unit first-order Gauss-Markov process of correlation time `tau_b`. A
-//! process that is not Gauss-Markov (a random walk, two time scales) gets the Gauss-Markov
-//! process closest to it in likelihood over the survey's span. Parameters the configuration
+//! attitude), `zeta_k` a unit first-order Gauss-Markov process of correlation time `tau_b`. On a
+//! survey long enough to tell ([`SLOW_MIN_SPAN_S`]), a second, slow process per block
+//! (`sqrt(c_b) s_k(t) xi_k(t)`, correlation time `tau2_b`) is estimated too and kept when the
+//! likelihood ratio says the data need it ([`SLOW_LR_THRESHOLD`]). A process that is neither (a
+//! random walk) gets the model closest to it in likelihood over the survey's span. Parameters the configuration
 //! sets (`[diagnose]` keys) are held, the rest estimated; each estimate carries the sigma of
 //! the observed information (the inverse Hessian of the restricted log-likelihood in the
 //! logarithms of the parameters).
 
-use super::model::continuous::{KnotSums, Layout};
+use super::model::continuous::{KnotSums, Layout, Process};
 use super::model::design::catalogue_row;
-use super::model::{ObservationSet, N_EFFECTS};
+use super::model::{ObservationSet, SlowNav, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector};
 
@@ -42,9 +44,37 @@ const WHITE_REACH: f64 = 16.0;
 const WHITE_TOLERANCE: f64 = 0.01;
 const WHITE_STEPS: usize = 12;
 
+/// Bounds of a slow process's share of the SMRMSG variance.
+const SLOW_SHARE_BOUNDS: (f64, f64) = (1e-3, 4.0);
+/// Bounds of a slow process's correlation time (s): slower than the first process is
+/// typically, up to many times a long survey.
+const SLOW_TAU_BOUNDS_S: (f64, f64) = (60.0, 5000.0);
+/// Where the search of the slow process starts, and the centre of its prior: a tenth of the
+/// SMRMSG variance, correlated over 10 minutes.
+const SLOW_START: [f64; 2] = [0.1, 600.0];
+/// The second process is searched only where the fit references span at least this (s): over
+/// a shorter span a process slower than [`SLOW_TAU_BOUNDS_S`]'s lower bound is a constant
+/// and a trend, which the fixed effects (a constant attitude error is a boresight) and the
+/// first process's correlation time already take.
+pub const SLOW_MIN_SPAN_S: f64 = 300.0;
+/// The second process is used when twice the log-likelihood ratio of the model with it
+/// against the model without it exceeds this: the 99% point of chi-square with 4 degrees of
+/// freedom (two shares and two correlation times; conservative, the shares' null value lying
+/// on the bound).
+pub const SLOW_LR_THRESHOLD: f64 = 13.28;
+
+/// Number of parameters: correlation time, scale and white share per block, and the slow
+/// process's share and correlation time per block.
+const NP: usize = 10;
+
 /// Whether parameter `i` (search order, [`bounds`]) is a white share.
 fn is_white(i: usize) -> bool {
-    i >= 4
+    i == 4 || i == 5
+}
+
+/// Whether parameter `i` belongs to the slow process.
+fn is_slow(i: usize) -> bool {
+    i >= 6
 }
 
 /// A fixed effect whose Jacobi-scaled Cholesky pivot falls below this (correlation with the
@@ -57,6 +87,9 @@ const SWEEPS: usize = 2;
 /// Rounds of summing the returns at the current estimate and searching again (the bridge
 /// variances follow the estimate; two rounds move it by well under its sigma).
 const ROUNDS: usize = 4;
+/// Rounds of the search of the model with the slow process (from the first model's estimate;
+/// the white shares held), before the likelihood ratio decides whether it is kept.
+const SLOW_ROUNDS: usize = 2;
 const GOLDEN_STEPS: usize = 9;
 /// The weak prior of the search (a penalised REML): each free parameter's logarithm is
 /// normal about its start (the correlation times the configuration starts from, a scale of 1)
@@ -67,8 +100,9 @@ const GOLDEN_STEPS: usize = 9;
 /// constant attitude error is a boresight), the prior keeps the pair from running to the
 /// bounds (5000 s and 0.25), where the null model would lose the attitude error the SMRMSG
 /// states and name boresight or heading effects that are navigation error.
-/// The white shares' prior is as wide as the correlation times' (a factor 20 either way).
-const PRIOR_LOG_SD: [f64; 6] = [3.0, 3.0, 0.5, 0.5, 3.0, 3.0];
+/// The white shares' and the slow process's shares' priors are as wide as the correlation
+/// times' (a factor 20 either way); the slow correlation times' e^1.5 (a factor 4.5).
+const PRIOR_LOG_SD: [f64; NP] = [3.0, 3.0, 0.5, 0.5, 3.0, 3.0, 3.0, 3.0, 1.5, 1.5];
 /// Step of the numerical Hessian in the logarithm of a parameter.
 const HESSIAN_STEP: f64 = 0.05;
 
@@ -103,22 +137,48 @@ pub struct Nuisance {
     /// Variance of the white attitude noise per trajectory record, as a share of the median
     /// SMRMSG attitude variance.
     pub attitude_white_share: Parameter,
+    /// The second, slow process per block, where it was searched (`None`: the fit references
+    /// span less than [`SLOW_MIN_SPAN_S`], or its shares are configured 0).
+    pub slow: Option<SlowProcess>,
     /// Whether the sigmas are marginal (the inverse observed information) or conditional
     /// (each with the others held: the likelihood has a ridge, typically a correlation time
     /// against its block's scale on a survey short against it, where only `scale^2 / tau` is
     /// determined).
     pub sigma_kind: SigmaKind,
-    /// Covariance of the logarithms of the four parameters (order as above; zero rows and
-    /// columns for a configured parameter or one at a bound), as `sigma_kind` says: what
-    /// [`chi2_variance`] propagates.
+    /// Covariance of the logarithms of the parameters (order as above, then the slow
+    /// process's position and attitude shares and correlation times; zero rows and columns
+    /// for a configured parameter, one at a bound, or an unused slow process), as
+    /// `sigma_kind` says: what [`chi2_variance`] propagates.
     #[serde(skip)]
-    pub log_covariance: [[f64; 6]; 6],
+    pub log_covariance: [[f64; NP]; NP],
     /// Restricted log-likelihood at the values, on the fit references.
     pub reml_log_likelihood: f64,
     /// Catalogue effects held as fixed effects in the REML design.
     pub fixed_effects: usize,
     /// Likelihood evaluations spent.
     pub evaluations: usize,
+}
+
+/// The second, slow navigation error process of the null model (`diagnosis.json`
+/// `nuisance.slow`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SlowProcess {
+    /// Whether the statistics use it: the likelihood ratio exceeds [`SLOW_LR_THRESHOLD`], or
+    /// a share is configured.
+    pub used: bool,
+    /// Twice the restricted log-likelihood ratio (penalised) of the model with it against the
+    /// model without it, on the fit references.
+    pub lr_statistic: f64,
+    /// The threshold `lr_statistic` is compared with.
+    pub lr_threshold: f64,
+    /// Variance of the slow position process as a share of the SMRMSG position variance.
+    pub position_share: Parameter,
+    /// Variance of the slow attitude process as a share of the SMRMSG attitude variance.
+    pub attitude_share: Parameter,
+    /// Correlation time of the slow position process (s).
+    pub position_tau_s: Parameter,
+    /// Correlation time of the slow attitude process (s).
+    pub attitude_tau_s: Parameter,
 }
 
 /// How the sigmas of a [`Nuisance`] were obtained.
@@ -146,10 +206,18 @@ pub struct Held {
     pub position_white_share: Option<f64>,
     /// `diagnose.nav_attitude_white_share`.
     pub attitude_white_share: Option<f64>,
+    /// `diagnose.nav_position_slow_share`.
+    pub position_slow_share: Option<f64>,
+    /// `diagnose.nav_attitude_slow_share`.
+    pub attitude_slow_share: Option<f64>,
+    /// `diagnose.nav_position_slow_tau_s`.
+    pub position_slow_tau_s: Option<f64>,
+    /// `diagnose.nav_attitude_slow_tau_s`.
+    pub attitude_slow_tau_s: Option<f64>,
 }
 
 impl Held {
-    fn values(&self) -> [Option<f64>; 6] {
+    fn values(&self) -> [Option<f64>; NP] {
         [
             self.position_tau_s,
             self.attitude_tau_s,
@@ -157,44 +225,78 @@ impl Held {
             self.attitude_scale,
             self.position_white_share,
             self.attitude_white_share,
+            self.position_slow_share,
+            self.attitude_slow_share,
+            self.position_slow_tau_s,
+            self.attitude_slow_tau_s,
         ]
     }
 }
 
 /// Parameters in search order: position tau, attitude tau, position scale, attitude scale,
-/// position white share, attitude white share.
+/// position white share, attitude white share, the slow process's position and attitude
+/// shares, its position and attitude correlation times.
 fn bounds(i: usize) -> (f64, f64) {
     match i {
         0 | 1 => TAU_BOUNDS_S,
         2 | 3 => SCALE_BOUNDS,
-        _ => WHITE_BOUNDS,
+        4 | 5 => WHITE_BOUNDS,
+        6 | 7 => SLOW_SHARE_BOUNDS,
+        _ => SLOW_TAU_BOUNDS_S,
     }
 }
 
-/// `set` with the navigation model `[tau_p, tau_a, a_p, a_a, w_p, w_a]`: correlation times and
-/// white shares set and the visits' navigation covariances scaled by block (`a_p^2`, `a_a^2`,
+/// The process of parameters `x` (the scales applied to the first process; the slow shares
+/// of the unscaled variances), with the slow process when `slow`.
+fn process(x: &[f64; NP], slow: bool) -> Process {
+    Process {
+        tau: [x[0], x[1]],
+        scale: [x[2], x[3]],
+        slow: slow.then_some(SlowNav {
+            share: [x[6], x[7]],
+            tau_s: [x[8], x[9]],
+        }),
+    }
+}
+
+/// `set` with the navigation model of `nuisance`: correlation times, white shares and the slow
+/// process set and the visits' navigation covariances scaled by block (`a_p^2`, `a_a^2`,
 /// `a_p a_a` across).
 pub fn apply(set: &ObservationSet, nuisance: &Nuisance) -> ObservationSet {
     let mut out = set.clone();
-    scale_into(set, &mut out, &values(nuisance));
+    let (x, slow) = values(nuisance);
+    scale_into(set, &mut out, &x, slow);
     out
 }
 
-fn values(n: &Nuisance) -> [f64; 6] {
-    [
+/// The parameters of `n` in search order, and whether its slow process is used.
+fn values(n: &Nuisance) -> ([f64; NP], bool) {
+    let slow = |f: fn(&SlowProcess) -> &Parameter, start: f64| {
+        n.slow.as_ref().map_or(start, |s| f(s).value)
+    };
+    let x = [
         n.position_tau_s.value,
         n.attitude_tau_s.value,
         n.position_scale.value,
         n.attitude_scale.value,
         n.position_white_share.value,
         n.attitude_white_share.value,
-    ]
+        slow(|s| &s.position_share, SLOW_START[0]),
+        slow(|s| &s.attitude_share, SLOW_START[0]),
+        slow(|s| &s.position_tau_s, SLOW_START[1]),
+        slow(|s| &s.attitude_tau_s, SLOW_START[1]),
+    ];
+    (x, n.slow.as_ref().is_some_and(|s| s.used))
 }
 
-fn scale_into(base: &ObservationSet, out: &mut ObservationSet, x: &[f64; 6]) {
+fn scale_into(base: &ObservationSet, out: &mut ObservationSet, x: &[f64; NP], slow: bool) {
     out.nav_tau_s = Some([x[0], x[1]]);
-    // The white shares are of the SMRMSG variances, the set's are of its scaled ones.
+    // The white and slow shares are of the SMRMSG variances, the set's are of its scaled ones.
     out.nav_white_share = [x[4] / (x[2] * x[2]), x[5] / (x[3] * x[3])];
+    out.nav_slow = slow.then_some(SlowNav {
+        share: [x[6] / (x[2] * x[2]), x[7] / (x[3] * x[3])],
+        tau_s: [x[8], x[9]],
+    });
     let a = |k: usize| if k < 3 { x[2] } else { x[3] };
     for (v, b) in out.visits.iter_mut().zip(&base.visits) {
         for k in 0..6 {
@@ -213,56 +315,103 @@ fn scale_into(base: &ObservationSet, out: &mut ObservationSet, x: &[f64; 6]) {
 struct Reml<'a> {
     base: &'a ObservationSet,
     /// Centre of the prior of each parameter, and whether it is free (penalised).
-    prior_centre: [f64; 6],
-    free: [bool; 6],
+    prior_centre: [f64; NP],
+    free: [bool; NP],
+    /// Whether the model has the slow process (its parameters are otherwise ignored).
+    slow: bool,
     layout: Layout<'a>,
     columns: Vec<usize>,
     sums: KnotSums,
-    sums_at: [f64; 6],
+    sums_at: [f64; NP],
     evaluations: usize,
 }
 
 impl Reml<'_> {
     /// Sums the returns again at `x`.
-    fn resum(&mut self, x: &[f64; 6]) {
+    fn resum(&mut self, x: &[f64; NP]) {
         self.sums = KnotSums::accumulate(
             self.base,
             &self.layout,
             N_EFFECTS + 1,
             &catalogue_row,
-            [x[0], x[1]],
-            [x[2], x[3]],
+            &process(x, self.slow),
             [x[4], x[5]],
         );
         self.sums_at = *x;
     }
 
+    /// The parameters of the model (the slow process's only when it has it).
+    fn in_model(&self, i: usize) -> bool {
+        self.slow || !is_slow(i)
+    }
+
     /// `-1/2 (ln det C + ln det X^T C^-1 X + r^T C^-1 r - b^T (X^T C^-1 X)^-1 b)`, constants
-    /// dropped; `None` where a factorisation fails.
-    fn at(&mut self, x: &[f64; 6]) -> Option<f64> {
+    /// dropped, minus the prior's penalty; `None` where a factorisation fails.
+    fn at(&mut self, x: &[f64; NP]) -> Option<f64> {
         self.evaluations += 1;
         // The white noise is most of a return's independent variance: sums at another white
         // share would be far off, so they are made again (a pass over the returns), with the
-        // bridge variances still at the correlation times and scales they were summed at (so
-        // that every evaluation of a search or of the Hessian holds them at the same point).
-        if x[4..] != self.sums_at[4..] {
+        // bridge variances still at the process they were summed at (so that every
+        // evaluation of a search or of the Hessian holds them at the same point).
+        if x[4..6] != self.sums_at[4..6] {
             let mut y = self.sums_at;
-            y[4..].copy_from_slice(&x[4..]);
+            y[4..6].copy_from_slice(&x[4..6]);
             self.resum(&y);
         }
-        let (m, log_det_c) = self.sums.solve([x[0], x[1]], [x[2], x[3]]);
+        let (m, log_det_c) = self.sums.solve(&process(x, self.slow));
         let c = &self.columns;
         let n = DMatrix::from_fn(c.len(), c.len(), |i, j| m[(c[i], c[j])]);
         let b = DVector::from_fn(c.len(), |i, _| m[(c[i], N_EFFECTS)]);
         let chol = n.cholesky()?;
         let log_det_n = 2.0 * chol.l().diagonal().iter().map(|v| v.ln()).sum::<f64>();
         let quad = m[(N_EFFECTS, N_EFFECTS)] - b.dot(&chol.solve(&b));
-        let penalty: f64 = (0..6)
-            .filter(|&i| self.free[i])
+        let penalty: f64 = (0..NP)
+            .filter(|&i| self.free[i] && self.in_model(i))
             .map(|i| ((x[i] / self.prior_centre[i]).ln() / PRIOR_LOG_SD[i]).powi(2))
             .sum();
         let l = -0.5 * (log_det_c + log_det_n + quad + penalty);
         l.is_finite().then_some(l)
+    }
+
+    /// The free parameters of the model, in search order.
+    fn free_in_model(&self) -> Vec<usize> {
+        (0..NP)
+            .filter(|&i| self.free[i] && self.in_model(i))
+            .collect()
+    }
+
+    /// Rounds of coordinate searches from `x` (the sums made there; `x` left at the estimate),
+    /// the sums made again at each round's estimate until a round moves it by less than 1%
+    /// (at most `rounds`); returns the log-likelihood there. The white shares are searched
+    /// when `white` (each of their evaluations is a pass over the returns).
+    fn maximise(&mut self, x: &mut [f64; NP], rounds: usize, white: bool) -> Result<f64> {
+        let free: Vec<usize> = self
+            .free_in_model()
+            .into_iter()
+            .filter(|&i| white || !is_white(i))
+            .collect();
+        let mut best = self.at(x).ok_or_else(|| failed("the starting values"))?;
+        for _ in 0..rounds {
+            let round_start = *x;
+            for sweep in 0..SWEEPS {
+                let before = *x;
+                for &i in free.iter().filter(|&&i| sweep == 0 || !is_white(i)) {
+                    best = search(self, x, i, best);
+                }
+                if !moved(&before, x) {
+                    break;
+                }
+            }
+            // The sums are made again at the estimate (a white share's search leaves them at
+            // its last point), and the search stops once the round did not move it.
+            let settled = !moved(&round_start, x);
+            self.resum(x);
+            best = self.at(x).ok_or_else(|| failed("the estimate"))?;
+            if settled {
+                break;
+            }
+        }
+        Ok(best)
     }
 }
 
@@ -290,7 +439,10 @@ fn estimable_columns(m: &DMatrix<f64>) -> Vec<usize> {
 }
 
 /// Estimates the nuisance on the returns of `refs` (the fit references), holding what `held`
-/// sets; `start` gives the starting correlation times (the configured defaults).
+/// sets; `start` gives the starting correlation times (the configured defaults). The model
+/// with one process per block is estimated first; where the fit references span at least
+/// [`SLOW_MIN_SPAN_S`] (or a slow share is configured above 0), the model with the slow
+/// process too, which is used when its likelihood ratio exceeds [`SLOW_LR_THRESHOLD`].
 pub fn estimate(
     set: &ObservationSet,
     refs: &[usize],
@@ -302,66 +454,70 @@ pub fn estimate(
         selected[r] = true;
     }
     let fixed = held.values();
-    let mut x = [
-        fixed[0].unwrap_or(start_tau_s[0]),
-        fixed[1].unwrap_or(start_tau_s[1]),
-        fixed[2].unwrap_or(1.0),
-        fixed[3].unwrap_or(1.0),
-        fixed[4].unwrap_or(WHITE_START),
-        fixed[5].unwrap_or(WHITE_START),
+    let prior_centre = [
+        start_tau_s[0],
+        start_tau_s[1],
+        1.0,
+        1.0,
+        WHITE_START,
+        WHITE_START,
+        SLOW_START[0],
+        SLOW_START[0],
+        SLOW_START[1],
+        SLOW_START[1],
     ];
+    let mut x: [f64; NP] = std::array::from_fn(|i| fixed[i].unwrap_or(prior_centre[i]));
     let layout = Layout::new(set, &selected);
     let sums = KnotSums::accumulate(
         set,
         &layout,
         N_EFFECTS + 1,
         &catalogue_row,
-        [x[0], x[1]],
-        [x[2], x[3]],
+        &process(&x, false),
         [x[4], x[5]],
     );
-    let columns = estimable_columns(&sums.solve([x[0], x[1]], [x[2], x[3]]).0);
+    let columns = estimable_columns(&sums.solve(&process(&x, false)).0);
     let mut reml = Reml {
         base: set,
-        prior_centre: [
-            start_tau_s[0],
-            start_tau_s[1],
-            1.0,
-            1.0,
-            WHITE_START,
-            WHITE_START,
-        ],
+        prior_centre,
         free: std::array::from_fn(|i| fixed[i].is_none()),
+        slow: false,
         layout,
         columns,
         sums,
         sums_at: x,
         evaluations: 0,
     };
-    let free: Vec<usize> = (0..6).filter(|&i| fixed[i].is_none()).collect();
-    let mut best = reml.at(&x).ok_or_else(|| failed("the starting values"))?;
-    for _ in 0..ROUNDS {
-        let round_start = x;
-        for sweep in 0..SWEEPS {
-            let before = x;
-            for &i in free.iter().filter(|&&i| sweep == 0 || !is_white(i)) {
-                best = search(&mut reml, &mut x, i, best);
-            }
-            if !moved(&before, &x) {
-                break;
-            }
-        }
-        // The sums are made again at the estimate (a white share's search leaves them at its
-        // last point), and the search stops once the round did not move it.
-        let settled = !moved(&round_start, &x);
+    let mut best = reml.maximise(&mut x, ROUNDS, true)?;
+    let shares_configured = [fixed[6], fixed[7]];
+    let configured_on = shares_configured.iter().any(|v| v.is_some_and(|v| v > 0.0));
+    let configured_off = shares_configured.iter().all(|v| *v == Some(0.0));
+    let try_slow = configured_on || (!configured_off && span_s(set, &selected) >= SLOW_MIN_SPAN_S);
+    let mut slow_lr = None;
+    if try_slow {
+        let one = (x, best);
+        reml.slow = true;
         reml.resum(&x);
-        best = reml.at(&x).ok_or_else(|| failed("the estimate"))?;
-        if settled {
-            break;
+        // The white shares stay at the first model's estimate (searched again only if the
+        // slow process is kept: see below).
+        let two = reml.maximise(&mut x, SLOW_ROUNDS, false)?;
+        let lr = 2.0 * (two - one.1);
+        if configured_on || lr > SLOW_LR_THRESHOLD {
+            // One more round with every parameter, the white shares included.
+            best = reml.maximise(&mut x, 1, true)?;
+        } else {
+            // Back to the model with one process, summed at its estimate.
+            reml.slow = false;
+            let slow_part = x;
+            (x, best) = one;
+            x[6..].copy_from_slice(&slow_part[6..]);
+            reml.resum(&x);
         }
+        slow_lr = Some(lr);
     }
+    let free = reml.free_in_model();
     let (log_covariance, sigma_kind) = log_covariance(&mut reml, &x, &free, best);
-    let sigma: [Option<f64>; 6] =
+    let sigma: [Option<f64>; NP] =
         std::array::from_fn(|i| (log_covariance[i][i] > 0.0).then(|| log_covariance[i][i].sqrt()));
     let param = |i: usize| Parameter {
         value: x[i],
@@ -379,6 +535,15 @@ pub fn estimate(
         attitude_scale: param(3),
         position_white_share: param(4),
         attitude_white_share: param(5),
+        slow: slow_lr.map(|lr| SlowProcess {
+            used: reml.slow,
+            lr_statistic: lr,
+            lr_threshold: SLOW_LR_THRESHOLD,
+            position_share: param(6),
+            attitude_share: param(7),
+            position_tau_s: param(8),
+            attitude_tau_s: param(9),
+        }),
         sigma_kind,
         log_covariance,
         reml_log_likelihood: best,
@@ -387,10 +552,23 @@ pub fn estimate(
     })
 }
 
+/// Time between the first and the last selected return (s).
+fn span_s(set: &ObservationSet, selected: &[bool]) -> f64 {
+    let (lo, hi) = set
+        .observations
+        .iter()
+        .filter(|o| selected[o.reference])
+        .map(|o| o.covariates.time_s)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), t| {
+            (lo.min(t), hi.max(t))
+        });
+    (hi - lo).max(0.0)
+}
+
 /// Whether any parameter moved by more than 1% between `a` and `b` (a configured 0 never
 /// moves).
-fn moved(a: &[f64; 6], b: &[f64; 6]) -> bool {
-    (0..6).any(|i| a[i] != b[i] && (b[i] / a[i]).ln().abs() > 0.01)
+fn moved(a: &[f64; NP], b: &[f64; NP]) -> bool {
+    (0..NP).any(|i| a[i] != b[i] && (b[i] / a[i]).ln().abs() > 0.01)
 }
 
 fn failed(what: &str) -> Error {
@@ -407,7 +585,7 @@ fn failed(what: &str) -> Error {
 /// of its value and its bounds; returns the best log-likelihood and leaves the best value in
 /// `x[i]`. Golden section; Brent's parabolic search for a white share, whose evaluations each
 /// pass over the returns.
-fn search(reml: &mut Reml, x: &mut [f64; 6], i: usize, current: f64) -> f64 {
+fn search(reml: &mut Reml, x: &mut [f64; NP], i: usize, current: f64) -> f64 {
     let (lo_b, hi_b) = bounds(i);
     let centre = x[i].ln();
     let reach = if is_white(i) { WHITE_REACH } else { 4f64 }.ln();
@@ -540,11 +718,11 @@ fn brent_max(
 /// others held) on the diagonal, and [`SigmaKind::Conditional`] says so.
 fn log_covariance(
     reml: &mut Reml,
-    x: &[f64; 6],
+    x: &[f64; NP],
     free: &[usize],
     best: f64,
-) -> ([[f64; 6]; 6], SigmaKind) {
-    let mut out = [[0.0; 6]; 6];
+) -> ([[f64; NP]; NP], SigmaKind) {
+    let mut out = [[0.0; NP]; NP];
     let inner: Vec<usize> = free
         .iter()
         .copied()
@@ -558,17 +736,21 @@ fn log_covariance(
     }
     let h = HESSIAN_STEP;
     let k = inner.len();
-    // The points of the central differences: each parameter +-1 step, each pair +-1 +-1.
+    // The points of the central differences: each parameter +-1 step, each pair +1 +1 and
+    // -1 -1 (`k^2 + k` points; the pair's mixed derivative from these and the single steps,
+    // error O(h^2) as with four points a pair).
     let mut steps: Vec<Vec<(usize, f64)>> = Vec::new();
+    for &i in &inner {
+        steps.extend([1.0, -1.0].map(|s| vec![(i, s)]));
+    }
     for a in 0..k {
-        steps.extend([[1.0], [-1.0]].map(|[s]| vec![(inner[a], s)]));
         for b in a + 1..k {
-            for (s, t) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)] {
-                steps.push(vec![(inner[a], s), (inner[b], t)]);
+            for s in [1.0, -1.0] {
+                steps.push(vec![(inner[a], s), (inner[b], s)]);
             }
         }
     }
-    let points: Vec<[f64; 6]> = steps
+    let points: Vec<[f64; NP]> = steps
         .iter()
         .map(|st| {
             let mut y = *x;
@@ -581,7 +763,7 @@ fn log_covariance(
     // Taken in order of the white shares: the returns are summed once per pair of them.
     let mut order: Vec<usize> = (0..points.len()).collect();
     order.sort_by(|&p, &q| {
-        let key = |y: &[f64; 6]| (y[4], y[5]);
+        let key = |y: &[f64; NP]| (y[4], y[5]);
         key(&points[p])
             .partial_cmp(&key(&points[q]))
             .expect("finite")
@@ -591,12 +773,17 @@ fn log_covariance(
         value[p] = reml.at(&points[p]).unwrap_or(f64::NAN);
     }
     let mut hess = DMatrix::<f64>::zeros(k, k);
-    let mut next = value.iter();
-    let mut take = || *next.next().expect("one value per point");
+    let (single, pairs) = value.split_at(2 * k);
+    // f(+a) + f(-a): twice the value plus h^2 times the curvature.
+    let both = |a: usize| single[2 * a] + single[2 * a + 1];
     for a in 0..k {
-        hess[(a, a)] = (take() - 2.0 * best + take()) / (h * h);
+        hess[(a, a)] = (both(a) - 2.0 * best) / (h * h);
+    }
+    let mut next = pairs.iter();
+    for a in 0..k {
         for b in a + 1..k {
-            let v = (take() - take() - take() + take()) / (4.0 * h * h);
+            let (up, down) = (next.next().expect("a pair"), next.next().expect("a pair"));
+            let v = (up + down - both(a) - both(b) + 2.0 * best) / (2.0 * h * h);
             hess[(a, b)] = v;
             hess[(b, a)] = v;
         }
@@ -632,8 +819,8 @@ fn log_covariance(
 /// model learned on the fit references carries its sampling error to every test on the
 /// held-out ones; with the model known this is 0 and the statistic is `chi2_n`.
 pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance) -> f64 {
-    let x = values(nuisance);
-    let s = DMatrix::from_fn(6, 6, |i, j| nuisance.log_covariance[i][j]);
+    let (x, slow) = values(nuisance);
+    let s = DMatrix::from_fn(NP, NP, |i, j| nuisance.log_covariance[i][j]);
     if s.iter().all(|&v| v == 0.0) {
         return 0.0;
     }
@@ -644,10 +831,10 @@ pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance)
     let residual_row =
         |o: &super::model::Observation, out: &mut Vec<(usize, f64)>| out.push((0, o.residual_m));
     let layout = Layout::new(base, &selected);
-    let chi2 = |y: &[f64; 6]| {
-        let (tau, scale) = ([y[0], y[1]], [y[2], y[3]]);
-        let sums = KnotSums::accumulate(base, &layout, 1, &residual_row, tau, scale, [y[4], y[5]]);
-        sums.solve(tau, scale).0[(0, 0)]
+    let chi2 = |y: &[f64; NP]| {
+        let process = process(y, slow);
+        let sums = KnotSums::accumulate(base, &layout, 1, &residual_row, &process, [y[4], y[5]]);
+        sums.solve(&process).0[(0, 0)]
     };
     let eig = s.symmetric_eigen();
     let mut var = 0.0;
@@ -657,7 +844,7 @@ pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance)
         }
         let sd = lambda.sqrt();
         let reach = |sign: f64| -> f64 {
-            (0..6).fold(sd, |t, i| {
+            (0..NP).fold(sd, |t, i| {
                 let (lo, hi) = bounds(i);
                 let step = sign * v[i];
                 let room = if step > 0.0 {
@@ -676,7 +863,7 @@ pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance)
         if up + down <= 0.0 {
             continue;
         }
-        let at = |t: f64| -> [f64; 6] { std::array::from_fn(|i| x[i] * (t * v[i]).exp()) };
+        let at = |t: f64| -> [f64; NP] { std::array::from_fn(|i| x[i] * (t * v[i]).exp()) };
         let slope = (chi2(&at(up)) - chi2(&at(-down))) / (up + down);
         var += slope * slope * lambda;
     }
@@ -718,6 +905,59 @@ mod tests {
         check(&n.attitude_scale, 1.0 / 1.5, "attitude scale");
         check(&n.position_tau_s, truth_tau[0], "position tau");
         check(&n.attitude_tau_s, truth_tau[1], "attitude tau");
+    }
+
+    /// Two time scales per block (5 s and 600 / 300 s, half the variance in each; not
+    /// declared by the set) over a 600 s span: the model with the slow process is used (its
+    /// likelihood ratio above the threshold) and its shares are found within 4 sigma. Drawn
+    /// with one process, the slow process is not used.
+    #[test]
+    fn reml_learns_a_second_slow_process() {
+        let one = Scenario {
+            references: 80,
+            passes: 4,
+            nav_tau_s: Some([5.0, 5.0]),
+            ..Default::default()
+        };
+        let two = Scenario {
+            nav_scale: [0.5f64.sqrt(); 2],
+            nav_slow: Some(SlowNav {
+                share: [0.5, 0.5],
+                tau_s: [600.0, 300.0],
+            }),
+            ..one.clone()
+        };
+        let set = draw(&two, 31);
+        let refs = set.observed_references();
+        let n = estimate(&set, &refs, &Held::default(), [60.0, 30.0]).unwrap();
+        let slow = n
+            .slow
+            .as_ref()
+            .expect("a 600 s span searches the slow process");
+        eprintln!(
+            "{slow:?}\nfirst process {:?} {:?}",
+            n.position_tau_s, n.position_scale
+        );
+        assert!(
+            slow.used && slow.lr_statistic > SLOW_LR_THRESHOLD,
+            "{slow:?}"
+        );
+        for (p, name) in [
+            (&slow.position_share, "position"),
+            (&slow.attitude_share, "attitude"),
+        ] {
+            let s = p
+                .sigma
+                .unwrap_or_else(|| panic!("{name}: no sigma ({p:?})"));
+            assert!((p.value - 0.5).abs() < 4.0 * s, "{name}: {p:?}");
+        }
+        let set = draw(&one, 32);
+        let refs = set.observed_references();
+        let n = estimate(&set, &refs, &Held::default(), [60.0, 30.0]).unwrap();
+        let slow = n.slow.as_ref().expect("searched");
+        eprintln!("one process: {slow:?}");
+        assert!(!slow.used, "{slow:?}");
+        assert_eq!(apply(&set, &n).nav_slow, None);
     }
 
     /// Gauss-Markov errors plus white navigation noise (half of each block's variance, one
@@ -792,6 +1032,7 @@ mod tests {
             attitude_scale: Some(1.0),
             position_white_share: Some(0.0),
             attitude_white_share: Some(0.0),
+            ..Default::default()
         };
         let n = estimate(&set, &sp.fit, &fixed, [60.0, 30.0]).unwrap();
         assert_eq!(chi2_variance(&set, &sp.held_out, &n), 0.0);

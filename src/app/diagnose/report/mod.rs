@@ -266,6 +266,25 @@ impl Diagnosis {
             p(&n.position_white_share, ""),
             p(&n.attitude_white_share, "")
         );
+        if let Some(slow) = &n.slow {
+            let (what, verb) = if slow.used {
+                ("used", "exceeds")
+            } else {
+                ("not used", "does not exceed")
+            };
+            let _ = writeln!(
+                s,
+                "A second, slow process per block ({what}: twice its log-likelihood ratio, {:.1}, \
+                 {verb} {:.2}): share of the SMRMSG variance position {}, attitude {}; \
+                 correlation time position {}, attitude {}.\n",
+                slow.lr_statistic,
+                slow.lr_threshold,
+                p(&slow.position_share, ""),
+                p(&slow.attitude_share, ""),
+                p(&slow.position_tau_s, " s"),
+                p(&slow.attitude_tau_s, " s")
+            );
+        }
     }
 
     /// "No effect larger than ...": what this survey would have named with 90% probability.
