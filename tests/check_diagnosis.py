@@ -43,6 +43,8 @@ for name, v in d["detectable"].items():
 for k in ("position_tau_s", "attitude_tau_s", "position_scale", "attitude_scale"):
     p = d["nuisance"][k]
     assert p["source"] in ("estimated", "configured") and p["value"] > 0, (k, p)
+# The knots the likelihood ran on: 0.02-0.1 s apart (docs/diagnosis.md, "The knot spacing").
+assert 0.02 <= d["nuisance"]["knot_spacing_s"] <= 0.1, d["nuisance"]["knot_spacing_s"]
 # The second, slow process: null (not searched) or searched, with its test and four values.
 slow = d["nuisance"]["slow"]
 if slow is not None:

@@ -5,16 +5,18 @@
 //! Each error component `k` (north, east, down (m); roll, pitch, heading (rad)) is
 //! `z_k(t) = s_k(t) zeta_k(t)`, `zeta_k` a unit Gauss-Markov process of correlation time
 //! `tau_k`, `s_k` the SMRMSG sigma. It is represented by its values at knots on a grid of
-//! [`KNOT_S`] seconds (the grid points either side of every return) and linear between them;
+//! `knot_s` seconds ([`knot_spacing_s`]; the grid points either side of every return) and
+//! linear between them;
 //! what the line leaves out (a Brownian bridge, variance `q (t - t_a)(t_b - t) / (t_b - t_a)`
 //! along the return's gradient, `q = 2 s^2 / tau`) is added to the return's independent
 //! variance. A return's residual is then `x theta + h^T u + e`, `u` the knot values
 //! (`h`: the navigation gradient times the two interpolation weights), `e ~ N(0, D)`. `D` is
 //! block diagonal: the returns interpolated between the same two trajectory records share
-//! their bridge (covariance `q min(w) (1 - max(w)) KNOT_S`, `w` the weights of the right
+//! their bridge (covariance `q min(w) (1 - max(w)) knot_s`, `w` the weights of the right
 //! knot) and the white navigation noise of the records ([`ObservationSet::nav_white_share`]),
 //! and such a group's block is whitened by its Cholesky factor before it is summed. The bridge
-//! between returns of different groups (other records within the same 0.1 s) is left out.
+//! between returns of different groups (other records within the same knot interval) is left
+//! out: the spacing is chosen so that the bridge is a small share of a return's variance.
 //!
 //! The knots of one component form a Markov chain: the prior precision `Q` of `u` is block
 //! tridiagonal (6 x 6 blocks, knots in time order), and so is `M = Q + H^T D^-1 H`, since a
@@ -28,13 +30,19 @@
 
 use super::design::RowFn;
 use super::{white_nav_cov_m2, Observation, ObservationSet, SlowNav};
-use nalgebra::{DMatrix, Matrix6, SMatrix};
+use nalgebra::{DMatrix, Matrix6, SMatrix, SVector};
 use rayon::prelude::*;
 
-/// Spacing of the knots (s): short against the correlation times (tens of seconds), so that the
-/// bridge is small (0.1 s at 2 s^2 / tau = 1e-5 m^2/s: 0.5 mm) and its correlation between
-/// returns of different records within 0.1 s, unlike a visit's whole drift, matters little.
-pub const KNOT_S: f64 = 0.1;
+/// Widest spacing of the knots (s).
+pub const MAX_KNOT_S: f64 = 0.1;
+/// Narrowest spacing of the knots (s): four records of a 200 Hz trajectory.
+pub const MIN_KNOT_S: f64 = 0.02;
+/// Largest mean share of a return's scanner variance that the bridge between knots may reach
+/// at mid-interval. The bridge between returns of different records in one knot interval is
+/// left out of the model; its part of the held-out chi2/dof grows with this share (0.1 s knots
+/// under a 10 s position process, a share of about 0.15, left 0.976 with the true model
+/// held on a 15-lap survey; docs/diagnosis.md, "The residual model").
+const MAX_BRIDGE_SHARE: f64 = 0.02;
 
 /// Smallest sigma a knot gets (m or rad): a component without error would make `Q` infinite.
 const MIN_SIGMA: f64 = 1e-12;
@@ -52,6 +60,8 @@ struct Row<'a> {
 /// The returns on the selected references laid on the knots: made once per selection (a
 /// sort of the returns), summed at any nuisance ([`KnotSums::accumulate`]).
 pub(crate) struct Layout<'a> {
+    /// Spacing of the knots (s).
+    pub(crate) knot_s: f64,
     /// Knots (grid indices from the set's first return, ascending).
     idx: Vec<i64>,
     /// The returns grouped by the records they are interpolated between (each group on the
@@ -64,13 +74,16 @@ pub(crate) struct Layout<'a> {
 }
 
 impl<'a> Layout<'a> {
-    pub(crate) fn new(set: &'a ObservationSet, selected: &[bool]) -> Self {
+    /// The returns of `set` on `selected` on knots spaced for `process`
+    /// ([`knot_spacing_s`]).
+    pub(crate) fn new(set: &'a ObservationSet, selected: &[bool], process: &Process) -> Self {
+        let knot_s = knot_spacing_s(set, selected, process);
         let t0 = set
             .observations
             .iter()
             .map(|o| o.covariates.time_s)
             .fold(f64::INFINITY, f64::min);
-        let grid = |o: &Observation| (o.covariates.time_s - t0) / KNOT_S;
+        let grid = |o: &Observation| (o.covariates.time_s - t0) / knot_s;
         let mut rows: Vec<Row> = set
             .observations
             .iter()
@@ -105,7 +118,32 @@ impl<'a> Layout<'a> {
                 }
             }
         }
-        Layout { idx, rows, sigma }
+        Layout {
+            knot_s,
+            idx,
+            rows,
+            sigma,
+        }
+    }
+}
+
+/// The knot spacing (s) at which the Brownian bridge between knots of `process`, at
+/// mid-interval, is on average [`MAX_BRIDGE_SHARE`] of the scanner variance of the returns on
+/// `selected`, within [`MIN_KNOT_S`]..=[`MAX_KNOT_S`] (the bridge variance grows linearly with
+/// the spacing).
+pub(crate) fn knot_spacing_s(set: &ObservationSet, selected: &[bool], process: &Process) -> f64 {
+    let (mut sum, mut n) = (0.0, 0usize);
+    for o in set.observations.iter().filter(|o| selected[o.reference]) {
+        let nav_var = &set.visits[o.visit].nav_cov;
+        let at_one_s = (o, nav_var, 0.5);
+        sum += bridge_cov_m2(at_one_s, at_one_s, process, 1.0) / o.var_white_m2;
+        n += 1;
+    }
+    let share_per_s = sum / n.max(1) as f64;
+    if share_per_s > 0.0 {
+        (MAX_BRIDGE_SHARE / share_per_s).clamp(MIN_KNOT_S, MAX_KNOT_S)
+    } else {
+        MAX_KNOT_S
     }
 }
 
@@ -132,18 +170,19 @@ impl Process {
     }
 }
 
-/// Covariance (m^2) of the Brownian bridges between the knots of two returns on the same
-/// knot interval (at weights `w1`, `w2` of the right knot) along their gradients, of both
-/// processes of `process`, the navigation variances `nav_var1`, `nav_var2` of their visits:
-/// `q KNOT_S min(w) (1 - max(w))` per component, `q` the diffusion; with `w1 = w2` and one
-/// return, its variance. Zero beyond the right knot (a group's extrapolation, at most a record
-/// interval).
+/// Covariance (m^2) of the Brownian bridges between the knots (`knot_s` apart) of two returns
+/// on the same knot interval (at weights `w1`, `w2` of the right knot) along their gradients,
+/// of both processes of `process`, the navigation variances `nav_var1`, `nav_var2` of their
+/// visits: `q knot_s min(w) (1 - max(w))` per component, `q` the diffusion; with `w1 = w2`
+/// and one return, its variance. Zero beyond the right knot (a group's extrapolation, at most
+/// a record interval).
 fn bridge_cov_m2(
     (o1, nav_var1, w1): (&Observation, &[[f64; 6]; 6], f64),
     (o2, nav_var2, w2): (&Observation, &[[f64; 6]; 6], f64),
     process: &Process,
+    knot_s: f64,
 ) -> f64 {
-    let shape = (w1.min(w2) * (1.0 - w1.max(w2))).max(0.0) * KNOT_S;
+    let shape = (w1.min(w2) * (1.0 - w1.max(w2))).max(0.0) * knot_s;
     if shape == 0.0 {
         return 0.0;
     }
@@ -162,14 +201,20 @@ fn bridge_cov_m2(
 }
 
 /// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient.
-fn bridge_var_m2(o: &Observation, nav_var: &[[f64; 6]; 6], w: f64, process: &Process) -> f64 {
-    bridge_cov_m2((o, nav_var, w), (o, nav_var, w), process)
+fn bridge_var_m2(
+    o: &Observation,
+    nav_var: &[[f64; 6]; 6],
+    w: f64,
+    process: &Process,
+    knot_s: f64,
+) -> f64 {
+    bridge_cov_m2((o, nav_var, w), (o, nav_var, w), process, knot_s)
 }
 
 /// The prior precision `Q` of the knot values: diagonal blocks and the blocks coupling each
 /// knot to the next (both diagonal: the components are independent).
 fn prior_precision(
-    idx: &[i64],
+    (idx, knot_s): (&[i64], f64),
     sigma: &[[f64; 6]],
     tau: [f64; 2],
 ) -> (Vec<[f64; 6]>, Vec<[f64; 6]>) {
@@ -177,7 +222,7 @@ fn prior_precision(
     let mut next = vec![[0.0; 6]; idx.len().saturating_sub(1)];
     for k in 0..6 {
         for (j, n) in next.iter_mut().enumerate() {
-            let rho = (-((idx[j + 1] - idx[j]) as f64) * KNOT_S / tau[k / 3]).exp();
+            let rho = (-((idx[j + 1] - idx[j]) as f64) * knot_s / tau[k / 3]).exp();
             let c = 1.0 - rho * rho;
             diag[j][k] += rho * rho / c;
             diag[j + 1][k] += rho * rho / c;
@@ -192,14 +237,14 @@ fn prior_precision(
 
 /// `ln det` of the prior covariance of the knot values: per component a Markov chain,
 /// `sum_j 2 ln s_j + sum_j ln(1 - rho_j^2)` over its knots and neighbouring pairs.
-fn prior_log_det(idx: &[i64], sigma: &[[f64; 6]], tau: [f64; 2]) -> f64 {
+fn prior_log_det((idx, knot_s): (&[i64], f64), sigma: &[[f64; 6]], tau: [f64; 2]) -> f64 {
     let mut out = 0.0;
     for k in 0..6 {
         out += sigma.iter().map(|s| 2.0 * s[k].ln()).sum::<f64>();
         out += idx
             .windows(2)
             .map(|w| {
-                let rho = (-((w[1] - w[0]) as f64) * KNOT_S / tau[k / 3]).exp();
+                let rho = (-((w[1] - w[0]) as f64) * knot_s / tau[k / 3]).exp();
                 (1.0 - rho * rho).ln()
             })
             .sum::<f64>();
@@ -227,8 +272,8 @@ pub(crate) fn gram_and_log_det(
     row: &RowFn,
     tau: [f64; 2],
 ) -> (DMatrix<f64>, f64) {
-    let layout = Layout::new(set, selected);
     let process = Process::of(set, tau);
+    let layout = Layout::new(set, selected, &process);
     KnotSums::accumulate(set, &layout, p, row, &process, set.nav_white_share).solve(&process)
 }
 
@@ -238,7 +283,9 @@ pub(crate) fn gram_and_log_det(
 /// the knots' prior, so that the likelihood of the nuisance (`app::diagnose::nuisance`) costs
 /// O(K 6 p^2) per evaluation instead of a pass over the returns.
 pub(crate) struct KnotSums {
-    /// Knots (grid indices, ascending) and their sigmas before any scale.
+    /// Knots (grid indices, ascending, `knot_s` seconds apart) and their sigmas before any
+    /// scale.
+    knot_s: f64,
     idx: Vec<i64>,
     sigma: Vec<[f64; 6]>,
     /// The sums over all knots (`first_knot` 0).
@@ -271,6 +318,7 @@ struct Sums {
 struct Noise<'a> {
     set: &'a ObservationSet,
     process: Process,
+    knot_s: f64,
     white_var: [f64; 6],
 }
 
@@ -290,6 +338,7 @@ impl KnotSums {
         let noise = Noise {
             set,
             process: *process,
+            knot_s: layout.knot_s,
             white_var: set.white_nav_var(white),
         };
         let bounds = piece_bounds(&layout.rows);
@@ -305,6 +354,7 @@ impl KnotSums {
             }
         }
         KnotSums {
+            knot_s: layout.knot_s,
             idx: layout.idx.clone(),
             sigma: layout.sigma.clone(),
             sums,
@@ -320,9 +370,10 @@ impl KnotSums {
             .iter()
             .map(|s| std::array::from_fn(|k| s[k] * process.scale[k / 3]))
             .collect();
-        let (q_diag, q_next) = prior_precision(&self.idx, &sigma, process.tau);
+        let knots = (self.idx.as_slice(), self.knot_s);
+        let (q_diag, q_next) = prior_precision(knots, &sigma, process.tau);
         // ln det Q = -ln det(prior covariance).
-        let mut log_det_c = self.sums.log_det_d + prior_log_det(&self.idx, &sigma, process.tau);
+        let mut log_det_c = self.sums.log_det_d + prior_log_det(knots, &sigma, process.tau);
         let plus = |q: &[f64; 6], h: &Matrix6<f64>| Matrix6::from_diagonal(&(*q).into()) + h;
         let (whitened, log_det_m) = match &process.slow {
             None => {
@@ -336,8 +387,8 @@ impl KnotSums {
                     .zip(&self.sums.h_d_h_next)
                     .map(|(q, h)| plus(q, h))
                     .collect();
-                whitened_gram(&m_diag, &m_next, p, |j| {
-                    self.sums.h_d_x.rows(6 * j, 6).into_owned()
+                whitened_gram(&m_diag, &m_next, p, |j, c| {
+                    self.sums.h_d_x.fixed_view::<6, 1>(6 * j, c).into_owned()
                 })
             }
             Some(slow) => {
@@ -348,8 +399,8 @@ impl KnotSums {
                         std::array::from_fn(|k| (s[k] * slow.share[k / 3].sqrt()).max(MIN_SIGMA))
                     })
                     .collect();
-                let (s_diag, s_next) = prior_precision(&self.idx, &slow_sigma, slow.tau_s);
-                log_det_c += prior_log_det(&self.idx, &slow_sigma, slow.tau_s);
+                let (s_diag, s_next) = prior_precision(knots, &slow_sigma, slow.tau_s);
+                log_det_c += prior_log_det(knots, &slow_sigma, slow.tau_s);
                 let two = |q: &[f64; 6], s: &[f64; 6], h: &Matrix6<f64>| {
                     let mut m = SMatrix::<f64, 12, 12>::zeros();
                     for (r, c) in [(0, 0), (0, 6), (6, 0), (6, 6)] {
@@ -367,12 +418,9 @@ impl KnotSums {
                 let m_next: Vec<SMatrix<f64, 12, 12>> = (0..q_next.len())
                     .map(|j| two(&q_next[j], &s_next[j], &self.sums.h_d_h_next[j]))
                     .collect();
-                whitened_gram(&m_diag, &m_next, p, |j| {
-                    let b = self.sums.h_d_x.rows(6 * j, 6);
-                    let mut out = DMatrix::zeros(12, b.ncols());
-                    out.rows_mut(0, 6).copy_from(&b);
-                    out.rows_mut(6, 6).copy_from(&b);
-                    out
+                whitened_gram(&m_diag, &m_next, p, |j, c| {
+                    let b = self.sums.h_d_x.fixed_view::<6, 1>(6 * j, c);
+                    SVector::<f64, 12>::from_fn(|k, _| b[k % 6])
                 })
             }
         };
@@ -451,7 +499,7 @@ impl Sums {
         let white_var = &noise.white_var;
         let var = |r: &Row| {
             let nav_var = &noise.set.visits[r.o.visit].nav_cov;
-            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &noise.process)
+            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &noise.process, noise.knot_s)
         };
         let h_of = |r: &Row| {
             let g = SMatrix::<f64, 6, 1>::from_column_slice(&r.o.nav_gradient);
@@ -501,6 +549,7 @@ impl Sums {
                         (r.o, nav_var(r), r.w),
                         (q.o, nav_var(q), q.w),
                         &noise.process,
+                        noise.knot_s,
                     );
                 }
                 d[(a, b)] += c;
@@ -554,45 +603,72 @@ impl Sums {
     }
 }
 
+/// Knots whose rows of `Y` are gathered before they are added to `Y^T Y` as one product.
+const GRAM_CHUNK: usize = 64;
+
 /// `B^T M^-1 B` for the symmetric positive definite block-tridiagonal `M` (`N x N` diagonal
-/// blocks `diag`, `next[j]` = the block of row `j`, column `j + 1`; `b(j)` the `N` rows of `B`
-/// at knot `j`): block Cholesky `M = L L^T`, `Y = L^-1 B` by forward substitution, `Y^T Y`;
-/// and `ln det M = 2 sum ln diag L`.
+/// blocks `diag`, `next[j]` = the block of row `j`, column `j + 1`; `b(j, c)` the `N` rows of
+/// column `c` of `B` at knot `j`): block Cholesky `M = L L^T`, `Y = L^-1 B` by forward
+/// substitution, `Y^T Y`; and `ln det M = 2 sum ln diag L`.
 fn whitened_gram<const N: usize>(
     diag: &[SMatrix<f64, N, N>],
     next: &[SMatrix<f64, N, N>],
     p: usize,
-    b: impl Fn(usize) -> DMatrix<f64>,
+    b: impl Fn(usize, usize) -> SVector<f64, N>,
 ) -> (DMatrix<f64>, f64) {
     let mut out = DMatrix::<f64>::zeros(p, p);
     let mut log_det = 0.0;
-    // Carried from knot j - 1: L_{j, j-1} and Y_{j-1}.
-    let mut below: Option<(SMatrix<f64, N, N>, DMatrix<f64>)> = None;
+    let mut chunk = DMatrix::<f64>::zeros(N * GRAM_CHUNK, p);
+    let mut filled = 0;
+    // Y at the last knot, column by column, and L_{j, j-1} carried from knot j - 1.
+    let mut y = vec![SVector::<f64, N>::zeros(); p];
+    let mut l_below: Option<SMatrix<f64, N, N>> = None;
     for (j, d) in diag.iter().enumerate() {
         let mut s = *d;
-        let mut rhs = b(j);
-        if let Some((l_below, y_prev)) = &below {
-            s -= l_below * l_below.transpose();
-            rhs -= l_below * y_prev;
+        if let Some(lb) = &l_below {
+            s -= lb * lb.transpose();
         }
         let l = s
             .cholesky()
             .expect("prior precision plus a Gram matrix is positive definite")
             .l();
         log_det += 2.0 * l.diagonal().iter().map(|x| x.ln()).sum::<f64>();
-        let y = l
-            .solve_lower_triangular(&rhs)
+        let l_inv = l
+            .solve_lower_triangular(&SMatrix::<f64, N, N>::identity())
             .expect("Cholesky factor is invertible");
-        out += y.transpose() * &y;
-        below = next.get(j).map(|n| {
-            // L_{j+1, j} = M_{j+1, j} L_jj^-T = (L_jj^-1 M_{j, j+1})^T.
-            let t = l
-                .solve_lower_triangular(n)
-                .expect("Cholesky factor is invertible");
-            (t.transpose(), y)
-        });
+        for (c, y_c) in y.iter_mut().enumerate() {
+            let mut rhs = b(j, c);
+            if let Some(lb) = &l_below {
+                rhs -= lb * *y_c;
+            }
+            *y_c = l_inv * rhs;
+            chunk.fixed_view_mut::<N, 1>(N * filled, c).copy_from(y_c);
+        }
+        filled += 1;
+        if filled == GRAM_CHUNK || j + 1 == diag.len() {
+            add_gram(&mut out, &chunk, N * filled);
+            filled = 0;
+        }
+        // L_{j+1, j} = M_{j+1, j} L_jj^-T = (L_jj^-1 M_{j, j+1})^T.
+        l_below = next.get(j).map(|n| (l_inv * n).transpose());
     }
     (out, log_det)
+}
+
+/// Adds `A^T A` to the symmetric `out`, `A` the first `rows` rows of `chunk`: the upper
+/// triangle by dot products, mirrored.
+fn add_gram(out: &mut DMatrix<f64>, chunk: &DMatrix<f64>, rows: usize) {
+    for i in 0..chunk.ncols() {
+        let a = chunk.column(i);
+        let a = a.rows(0, rows);
+        for j in i..chunk.ncols() {
+            let d = a.dot(&chunk.column(j).rows(0, rows));
+            out[(i, j)] += d;
+            if j != i {
+                out[(j, i)] += d;
+            }
+        }
+    }
 }
 
 #[cfg(test)]
@@ -607,7 +683,12 @@ mod tests {
     /// the slow process's `share s_i s_j exp(-|t_i - t_j| / tau_slow)`.
     fn dense_gram(set: &ObservationSet, selected: &[bool], tau: [f64; 2]) -> (DMatrix<f64>, f64) {
         let process = Process::of(set, tau);
-        let Layout { idx, rows, sigma } = Layout::new(set, selected);
+        let Layout {
+            knot_s,
+            idx,
+            rows,
+            sigma,
+        } = Layout::new(set, selected, &process);
         let (n, nk) = (rows.len(), idx.len());
         let mut h = DMatrix::<f64>::zeros(n, 6 * nk);
         let mut x = DMatrix::<f64>::zeros(n, N_EFFECTS + 1);
@@ -624,13 +705,14 @@ mod tests {
                 x[(i, col)] = v;
             }
             let nav_var = &set.visits[r.o.visit].nav_cov;
-            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &process);
+            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &process, knot_s);
             let white_var = set.white_nav_var(set.nav_white_share);
             for (j, q) in rows.iter().enumerate() {
                 c[(i, j)] += white_nav_cov_m2(r.o, q.o, &white_var);
                 if j != i && r.group.is_some() && r.group == q.group {
                     let q_var = &set.visits[q.o.visit].nav_cov;
-                    c[(i, j)] += bridge_cov_m2((r.o, nav_var, r.w), (q.o, q_var, q.w), &process);
+                    let (a, b) = ((r.o, nav_var, r.w), (q.o, q_var, q.w));
+                    c[(i, j)] += bridge_cov_m2(a, b, &process, knot_s);
                 }
             }
         }
@@ -639,7 +721,7 @@ mod tests {
             if ki != kj {
                 return 0.0;
             }
-            let dt = ((idx[i / 6] - idx[j / 6]) as f64 * KNOT_S).abs();
+            let dt = ((idx[i / 6] - idx[j / 6]) as f64 * knot_s).abs();
             let slow = set
                 .nav_slow
                 .map_or(0.0, |s| s.share[ki / 3] * (-dt / s.tau_s[ki / 3]).exp());
@@ -706,7 +788,8 @@ mod tests {
             },
             4,
         );
-        let layout = Layout::new(&set, &vec![true; set.reference_ids.len()]);
+        let selected = vec![true; set.reference_ids.len()];
+        let layout = Layout::new(&set, &selected, &Process::of(&set, [60.0, 30.0]));
         let bounds = piece_bounds(&layout.rows);
         assert_eq!(bounds.first(), Some(&0));
         assert_eq!(bounds.last(), Some(&layout.rows.len()));
@@ -738,12 +821,12 @@ mod tests {
         let selected = vec![true; base.reference_ids.len()];
         let p = N_EFFECTS + 1;
         let (want, want_log_det) = gram_and_log_det(&scaled, &selected, p, &catalogue_row, tau);
-        let layout = Layout::new(&base, &selected);
         let process = Process {
             tau,
             scale,
             slow: None,
         };
+        let layout = Layout::new(&base, &selected, &process);
         let sums = KnotSums::accumulate(&base, &layout, p, &catalogue_row, &process, [0.0; 2]);
         let (got, got_log_det) = sums.solve(&process);
         let size = crate::testing::max_abs(want.iter().copied());

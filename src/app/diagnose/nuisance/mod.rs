@@ -18,7 +18,7 @@
 //! the observed information (the inverse Hessian of the restricted log-likelihood in the
 //! logarithms of the parameters).
 
-use super::model::continuous::{KnotSums, Layout, Process};
+use super::model::continuous::{knot_spacing_s, KnotSums, Layout, Process};
 use super::model::design::catalogue_row;
 use super::model::{ObservationSet, SlowNav, N_EFFECTS};
 use crate::{Error, Result};
@@ -57,6 +57,9 @@ const SLOW_START: [f64; 2] = [0.1, 600.0];
 /// and a trend, which the fixed effects (a constant attitude error is a boresight) and the
 /// first process's correlation time already take.
 pub const SLOW_MIN_SPAN_S: f64 = 300.0;
+/// The knots are laid out again when the estimate needs a spacing below this share of the
+/// start's.
+const RELAYOUT: f64 = 0.8;
 /// The second process is used when twice the log-likelihood ratio of the model with it
 /// against the model without it exceeds this: the 99% point of chi-square with 4 degrees of
 /// freedom (two shares and two correlation times; conservative, the shares' null value lying
@@ -157,6 +160,9 @@ pub struct Nuisance {
     pub fixed_effects: usize,
     /// Likelihood evaluations spent.
     pub evaluations: usize,
+    /// Spacing (s) of the knots the likelihood was evaluated on (docs/diagnosis.md, "The knot
+    /// spacing").
+    pub knot_spacing_s: f64,
 }
 
 /// The second, slow navigation error process of the null model (`diagnosis.json`
@@ -467,7 +473,7 @@ pub fn estimate(
         SLOW_START[1],
     ];
     let mut x: [f64; NP] = std::array::from_fn(|i| fixed[i].unwrap_or(prior_centre[i]));
-    let layout = Layout::new(set, &selected);
+    let layout = Layout::new(set, &selected, &process(&x, false));
     let sums = KnotSums::accumulate(
         set,
         &layout,
@@ -489,6 +495,13 @@ pub fn estimate(
         evaluations: 0,
     };
     let mut best = reml.maximise(&mut x, ROUNDS, true)?;
+    // A process shorter than the start's needs finer knots ([`knot_spacing_s`]): laid out
+    // again at the estimate and searched again from it.
+    if knot_spacing_s(set, &selected, &process(&x, false)) < RELAYOUT * reml.layout.knot_s {
+        reml.layout = Layout::new(set, &selected, &process(&x, false));
+        reml.resum(&x);
+        best = reml.maximise(&mut x, ROUNDS, true)?;
+    }
     let shares_configured = [fixed[6], fixed[7]];
     let configured_on = shares_configured.iter().any(|v| v.is_some_and(|v| v > 0.0));
     let configured_off = shares_configured.iter().all(|v| *v == Some(0.0));
@@ -549,6 +562,7 @@ pub fn estimate(
         reml_log_likelihood: best,
         fixed_effects: reml.columns.len(),
         evaluations: reml.evaluations,
+        knot_spacing_s: reml.layout.knot_s,
     })
 }
 
@@ -830,7 +844,7 @@ pub fn chi2_variance(base: &ObservationSet, refs: &[usize], nuisance: &Nuisance)
     }
     let residual_row =
         |o: &super::model::Observation, out: &mut Vec<(usize, f64)>| out.push((0, o.residual_m));
-    let layout = Layout::new(base, &selected);
+    let layout = Layout::new(base, &selected, &process(&x, slow));
     let chi2 = |y: &[f64; NP]| {
         let process = process(y, slow);
         let sums = KnotSums::accumulate(base, &layout, 1, &residual_row, &process, [y[4], y[5]]);
