@@ -40,7 +40,7 @@ pub const MIN_KNOT_S: f64 = 0.02;
 /// Largest mean share of a return's scanner variance that the bridge between knots may reach
 /// at mid-interval. The bridge between returns of different records in one knot interval is
 /// left out of the model; its part of the held-out chi2/dof grows with this share (0.1 s knots
-/// under a 10 s position process, a share of about 0.15, left 0.976 with the true model
+/// under a 10 s position process, a share of about 0.2, left 0.976 with the true model
 /// held on a 15-lap survey; docs/diagnosis.md, "The residual model").
 const MAX_BRIDGE_SHARE: f64 = 0.02;
 
