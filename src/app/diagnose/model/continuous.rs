@@ -777,6 +777,46 @@ mod tests {
         );
     }
 
+    /// The spacing rule: a shorter process (a larger diffusion) gets finer knots, in
+    /// proportion between the bounds, with the mean bridge share at mid-interval equal to
+    /// [`MAX_BRIDGE_SHARE`] there; the bounds hold outside; no navigation variance, the widest.
+    #[test]
+    fn knots_are_finer_for_a_shorter_process() {
+        let set = draw(&Scenario::default(), 6);
+        let selected = vec![true; set.reference_ids.len()];
+        let spacing = |tau: f64| knot_spacing_s(&set, &selected, &Process::of(&set, [tau; 2]));
+        let mean_share = |tau: f64, knot_s: f64| {
+            let process = Process::of(&set, [tau; 2]);
+            let shares: Vec<f64> = set
+                .observations
+                .iter()
+                .map(|o| {
+                    let mid = (o, &set.visits[o.visit].nav_cov, 0.5);
+                    bridge_cov_m2(mid, mid, &process, knot_s) / o.var_white_m2
+                })
+                .collect();
+            shares.iter().sum::<f64>() / shares.len() as f64
+        };
+        // The correlation time at which this set's knots fall mid-range (spacing ~ tau).
+        let tau_1 = 1.0;
+        let s_1 = MAX_BRIDGE_SHARE / mean_share(tau_1, 1.0);
+        let tau_mid = tau_1 * 0.05 / s_1;
+        let (s_mid, s_half) = (spacing(tau_mid), spacing(tau_mid / 2.0));
+        assert!((s_mid - 0.05).abs() < 1e-9, "{s_mid}");
+        assert!((s_half - 0.025).abs() < 1e-9, "{s_half}");
+        let share = mean_share(tau_mid, s_mid);
+        assert!((share - MAX_BRIDGE_SHARE).abs() < 1e-9, "{share}");
+        assert_eq!(spacing(tau_mid * 100.0), MAX_KNOT_S);
+        assert_eq!(spacing(tau_mid / 100.0), MIN_KNOT_S);
+        let mut still = set.clone();
+        still
+            .visits
+            .iter_mut()
+            .for_each(|v| v.nav_cov = [[0.0; 6]; 6]);
+        let still_spacing = knot_spacing_s(&still, &selected, &Process::of(&still, [10.0; 2]));
+        assert_eq!(still_spacing, MAX_KNOT_S);
+    }
+
     /// The pieces summed in parallel cover every return once and never split the returns
     /// that share a record's white noise.
     #[test]
