@@ -1,6 +1,7 @@
 //! The diagnosis report: `diagnosis.json` (docs/conventions.md §8 schema first, then the
 //! documented extras of docs/diagnosis.md) and `summary.md`, what a surveyor reads first.
 
+use super::nuisance::screen;
 use super::observe::ObserveCounts;
 use crate::io::atomic::write_atomic;
 use crate::{Error, Result};
@@ -191,7 +192,7 @@ pub struct Diagnosis {
     pub rates: crate::trajectory::RateCheck,
     /// Extra: returns set aside as foreign to their reference, by reference
     /// (docs/diagnosis.md, "Foreign returns").
-    pub foreign: crate::app::diagnose::nuisance::screen::Screening,
+    pub foreign: screen::Screening,
     /// Extra: what happened to every return.
     pub counts: ObserveCounts,
     /// Extra: PNG files written beside the report.
@@ -309,9 +310,15 @@ No catalogue effect is named; each would \
         let f = &self.foreign;
         let _ = writeln!(
             s,
-            "\nForeign returns (off their reference's surface by more than 6 sigma: people, cars, \
-             objects in front, edges): {} set aside; {} on references left out as mostly foreign{}.",
+            "\nForeign returns (off their reference's surface by more than {} sigma: people, cars, \
+             objects in front, edges): {} set aside; {} weighted down (off by {}-{} sigma: \
+             counted as at {} sigma); {} on references left out as mostly foreign{}.",
+            screen::THRESHOLD,
             f.set_aside,
+            f.down_weighted,
+            screen::SOFT,
+            screen::THRESHOLD,
+            screen::SOFT,
             f.on_unused_references,
             if f.unused_references.is_empty() {
                 String::new()
@@ -322,10 +329,14 @@ No catalogue effect is named; each would \
         if !f.by_reference.is_empty() {
             let _ = writeln!(
                 s,
-                "\n| reference | observations | set aside |\n|---|---:|---:|"
+                "\n| reference | observations | set aside | weighted down |\n|---|---:|---:|---:|"
             );
             for (id, r) in &f.by_reference {
-                let _ = writeln!(s, "| {id} | {} | {} |", r.observations, r.set_aside);
+                let _ = writeln!(
+                    s,
+                    "| {id} | {} | {} | {} |",
+                    r.observations, r.set_aside, r.down_weighted
+                );
             }
         }
     }
