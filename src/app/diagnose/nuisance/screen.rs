@@ -62,8 +62,8 @@ pub struct Screening {
     pub down_weighted: usize,
     /// Observations of references left out as mostly foreign.
     pub on_unused_references: usize,
-    /// Per reference id with at least one return set aside: its observations and how many
-    /// were set aside.
+    /// Per reference id with at least one return set aside or weighted down: its observations
+    /// and how many were set aside and weighted down.
     pub by_reference: BTreeMap<String, ReferenceScreen>,
     /// References left out: more than `max_foreign_share` of their returns set aside.
     pub unused_references: Vec<String>,
