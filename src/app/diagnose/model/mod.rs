@@ -165,6 +165,10 @@ pub struct Observation {
     /// point's mean over returns of many records): white navigation noise, one draw per
     /// record, is shared by the returns between the same two records.
     pub nav_record: Option<NavRecord>,
+    /// Where the return lies on its patch (m): its point's offsets from the patch centre along
+    /// the patch's in-plane axes (NaN for a control point's observations). Single precision:
+    /// a few patches' metres to a tenth of a millimetre.
+    pub plane_uv_m: [f32; 2],
 }
 
 /// Where a return sits between two trajectory records (docs/diagnosis.md, "White navigation

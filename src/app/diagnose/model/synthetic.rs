@@ -180,12 +180,20 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
                         index: (time_s * RECORD_HZ).floor() as usize,
                         w: (time_s * RECORD_HZ).fract(),
                     }),
+                    plane_uv_m: spread_on_patch(set.observations.len()),
                 });
             }
         }
     }
     fill_residuals(&mut set, s, seed ^ 0x5eed);
     set
+}
+
+/// Where the `i`th return lies on its 4 m x 4 m patch (m): a low-discrepancy (R2) sequence,
+/// spread evenly and drawn from no generator (the random draws stay today's).
+fn spread_on_patch(i: usize) -> [f32; 2] {
+    const R2: [f64; 2] = [0.754_877_666_246_692_7, 0.569_840_290_998_053_3];
+    R2.map(|a| (4.0 * ((i as f64 + 0.5) * a).fract() - 2.0) as f32)
 }
 
 /// Navigation errors at every return from one Gauss-Markov process per component, sampled

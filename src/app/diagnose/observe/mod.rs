@@ -721,7 +721,11 @@ fn observe_visit(
             centre_e: &frame.centre_e,
             range_m,
         };
-        obs.push(observation_along(loc, model, &at, r, ids, cov));
+        let offset_e = loc.x_e - frame.centre_e;
+        obs.push(Observation {
+            plane_uv_m: [0, 1].map(|k| frame.axes_e.row(k).transpose().dot(&offset_e) as f32),
+            ..observation_along(loc, model, &at, r, ids, cov)
+        });
     }
     let v = Visit {
         reference,
@@ -890,6 +894,7 @@ fn observation_along(
             .traj
             .interval_at(loc.t_s + model.position_latency_s)
             .map(|(index, w)| NavRecord { index, w }),
+        plane_uv_m: [f32::NAN; 2],
     }
 }
 

@@ -276,6 +276,7 @@ fn centroid(
         signature: [0.0; N_EFFECTS],
         covariates: cov,
         nav_record: None,
+        plane_uv_m: [f32::NAN; 2],
     };
     for r in returns {
         let at = Surface {

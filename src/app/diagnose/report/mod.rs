@@ -311,10 +311,16 @@ No catalogue effect is named; each would \
         let _ = writeln!(
             s,
             "\nForeign returns (off their reference's surface by more than {} sigma: people, cars, \
-             objects in front, edges): {} set aside; {} weighted down (off by {}-{} sigma: \
-             counted as at {} sigma); {} on references left out as mostly foreign{}.",
+             objects in front, edges; or together, with their {} m square of the patch, by more \
+             than {} times the squares' spread: kerbs, frames): {} set aside ({} with {} \
+             squares); {} weighted down (off by {}-{} sigma: counted as at {} sigma); {} on \
+             references left out as mostly foreign{}.",
             screen::THRESHOLD,
+            screen::CELL_M,
+            screen::CELL_THRESHOLD,
             f.set_aside,
+            f.by_place,
+            f.squares_set_aside,
             f.down_weighted,
             screen::SOFT,
             screen::THRESHOLD,
@@ -329,13 +335,14 @@ No catalogue effect is named; each would \
         if !f.by_reference.is_empty() {
             let _ = writeln!(
                 s,
-                "\n| reference | observations | set aside | weighted down |\n|---|---:|---:|---:|"
+                "\n| reference | observations | set aside | with their square | weighted down |\n\
+                 |---|---:|---:|---:|---:|"
             );
             for (id, r) in &f.by_reference {
                 let _ = writeln!(
                     s,
-                    "| {id} | {} | {} | {} |",
-                    r.observations, r.set_aside, r.down_weighted
+                    "| {id} | {} | {} | {} | {} |",
+                    r.observations, r.set_aside, r.by_place, r.down_weighted
                 );
             }
         }
