@@ -20,6 +20,9 @@ pub mod power;
 pub const DEFAULT_ALPHA: f64 = 0.01;
 /// Most groups in one explanation.
 const MAX_GROUPS: usize = 4;
+/// Held-out reductions closer than this many sd of their difference do not tell two
+/// explanations apart ([`judge`]).
+const TIE_SD: f64 = 1.0;
 
 /// `effect`, `none` or `unexplained` (docs/conventions.md §8).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -243,21 +246,51 @@ impl<'a> Context<'a> {
     }
 }
 
-/// Marks the Holm-significant candidates; returns the index of the best supported one
-/// (largest held-out reduction).
-fn judge(candidates: &mut [Candidate], alpha: f64) -> Option<usize> {
+/// Marks the Holm-significant candidates; returns the index of the chosen one. Among the
+/// significant, supported candidates, the held-out references cannot tell apart the one
+/// with the largest held-out reduction and those whose reduction falls short of it by less
+/// than [`TIE_SD`] sd of the difference; of these, the fit references choose the one with the
+/// smallest fit chi2 plus 2 per effect (docs/diagnosis.md, "Selection and verdict").
+fn judge(cx: &Context, candidates: &mut [Candidate], alpha: f64) -> Option<usize> {
     let p: Vec<f64> = candidates.iter().map(|c| c.p_value).collect();
     for (c, q) in candidates.iter_mut().zip(holm_adjusted(&p)) {
         c.p_holm = q;
         c.significant = q <= alpha;
     }
-    (0..candidates.len())
+    let eligible: Vec<usize> = (0..candidates.len())
         .filter(|&i| candidates[i].significant && candidates[i].supported(alpha))
-        .max_by(|&a, &b| {
-            candidates[a]
-                .held_out_reduction
-                .total_cmp(&candidates[b].held_out_reduction)
-        })
+        .collect();
+    let best = *eligible.iter().max_by(|&&a, &&b| {
+        candidates[a]
+            .held_out_reduction
+            .total_cmp(&candidates[b].held_out_reduction)
+    })?;
+    let b = &candidates[best];
+    let tied = |c: &Candidate| {
+        // Held-out reductions differ by chi2(theta_c) - chi2(theta_b): 2 (d^T C^-1 r) - ...
+        // with d the difference of the two corrections, sd 2 sqrt(d^T C^-1 d).
+        let effects: Vec<Effect> = b
+            .fit
+            .effects
+            .iter()
+            .chain(&c.fit.effects)
+            .copied()
+            .collect();
+        let delta: Vec<f64> = b
+            .fit
+            .estimate
+            .iter()
+            .copied()
+            .chain(c.fit.estimate.iter().map(|x| -x))
+            .collect();
+        let sd = 2.0 * cx.held.quadratic(&effects, &delta).max(0.0).sqrt();
+        b.held_out_reduction - c.held_out_reduction <= TIE_SD * sd
+    };
+    let penalised = |c: &Candidate| c.fit.chi2 + 2.0 * c.fit.effects.len() as f64;
+    eligible
+        .into_iter()
+        .filter(|&i| tied(&candidates[i]))
+        .min_by(|&a, &b| penalised(&candidates[a]).total_cmp(&penalised(&candidates[b])))
 }
 
 /// Each group alone and every pair (the pair's p-value requires both members).
@@ -310,7 +343,7 @@ fn extend(
                 Some(Candidate { p_value: p, ..c })
             })
             .collect();
-        let best = judge(&mut step, alpha);
+        let best = judge(cx, &mut step, alpha);
         let next = best.map(|i| step[i].clone());
         tried.append(&mut step);
         match next {
@@ -326,7 +359,7 @@ fn extend(
 /// the chosen explanation.
 fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
     let mut candidates = first_step(cx);
-    let best = judge(&mut candidates, alpha).map(|i| candidates[i].clone());
+    let best = judge(cx, &mut candidates, alpha).map(|i| candidates[i].clone());
     let chosen = best.map(|b| extend(cx, b, alpha, &mut candidates));
     (candidates, chosen)
 }
