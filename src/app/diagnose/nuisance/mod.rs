@@ -39,10 +39,10 @@ const WHITE_START: f64 = 0.01;
 /// How far one search of a white share reaches (a factor either way): a white share is
 /// searched once a round, since each of its evaluations sums the returns again.
 const WHITE_REACH: f64 = 16.0;
-/// Brent's search of a white share stops when its bracket is this narrow in the logarithm
-/// (a value to 1%, the rounds' own tolerance), or after [`WHITE_STEPS`] evaluations.
-const WHITE_TOLERANCE: f64 = 0.01;
-const WHITE_STEPS: usize = 12;
+/// The search of a parameter stops when its bracket is this narrow in the logarithm (a value
+/// to 1%, the rounds' own tolerance), or after [`SEARCH_STEPS`] evaluations.
+const SEARCH_TOLERANCE: f64 = 0.01;
+const SEARCH_STEPS: usize = 12;
 
 /// Bounds of a slow process's share of the SMRMSG variance.
 const SLOW_SHARE_BOUNDS: (f64, f64) = (1e-3, 4.0);
@@ -83,9 +83,7 @@ fn is_slow(i: usize) -> bool {
 /// A fixed effect whose Jacobi-scaled Cholesky pivot falls below this (correlation with the
 /// others above 1 - 5e-7) is left out of the REML design: it adds no estimable direction.
 const MIN_PIVOT: f64 = 1e-3;
-/// Sweeps of the coordinate search, and golden-section steps per coordinate (the bracket of
-/// a factor 16 shrinks to 0.618^9 = 1.3% of its width: 4% in the value, against sigmas of
-/// 10-50% on a lap).
+/// Sweeps of the coordinate search.
 const SWEEPS: usize = 2;
 /// Rounds of summing the returns at the current estimate and searching again (the bridge
 /// variances follow the estimate; two rounds move it by well under its sigma).
@@ -93,7 +91,6 @@ const ROUNDS: usize = 4;
 /// Rounds of the search of the model with the slow process (from the first model's estimate;
 /// the white shares held), before the likelihood ratio decides whether it is kept.
 const SLOW_ROUNDS: usize = 2;
-const GOLDEN_STEPS: usize = 9;
 /// The weak prior of the search (a penalised REML): each free parameter's logarithm is
 /// normal about its start (the correlation times the configuration starts from, a scale of 1)
 /// with these sds: a factor e^1.5 = 4.5 for a correlation time, e^0.5 = 1.65 for a scale
@@ -597,8 +594,8 @@ fn failed(what: &str) -> Error {
 
 /// Search of parameter `i` in its logarithm, within a factor 4 (a white share: [`WHITE_REACH`])
 /// of its value and its bounds; returns the best log-likelihood and leaves the best value in
-/// `x[i]`. Golden section; Brent's parabolic search for a white share, whose evaluations each
-/// pass over the returns.
+/// `x[i]`. Brent's parabolic search: the log-likelihood is smooth in the logarithm, and the
+/// parabolas reach 1% in about half the evaluations of golden sections.
 fn search(reml: &mut Reml, x: &mut [f64; NP], i: usize, current: f64) -> f64 {
     let (lo_b, hi_b) = bounds(i);
     let centre = x[i].ln();
@@ -613,11 +610,7 @@ fn search(reml: &mut Reml, x: &mut [f64; NP], i: usize, current: f64) -> f64 {
         y[i] = v.exp();
         reml.at(&y).unwrap_or(f64::NEG_INFINITY)
     };
-    let (v, f) = if is_white(i) {
-        brent_max(&mut eval, bracket, (centre, current))
-    } else {
-        golden_max(&mut eval, bracket)
-    };
+    let (v, f) = brent_max(&mut eval, bracket, (centre, current));
     if f > current {
         x[i] = v.exp();
         f
@@ -626,46 +619,23 @@ fn search(reml: &mut Reml, x: &mut [f64; NP], i: usize, current: f64) -> f64 {
     }
 }
 
-/// Golden-section search for the maximum of `f` on `(a, b)`: [`GOLDEN_STEPS`] steps.
-fn golden_max(f: &mut impl FnMut(f64) -> f64, (mut a, mut b): (f64, f64)) -> (f64, f64) {
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
-    let (mut fc, mut fd) = (f(c), f(d));
-    for _ in 0..GOLDEN_STEPS {
-        if fc > fd {
-            (b, d, fd) = (d, c, fc);
-            c = b - g * (b - a);
-            fc = f(c);
-        } else {
-            (a, c, fc) = (c, d, fd);
-            d = a + g * (b - a);
-            fd = f(d);
-        }
-    }
-    if fc > fd {
-        (c, fc)
-    } else {
-        (d, fd)
-    }
-}
-
 /// Brent's search for the maximum of `f` on `(a, b)` from `x0` (where `f` is `f0`):
 /// parabolas through the three best points, a golden-section step where a parabola's vertex
 /// falls outside the bracket or does not shrink the step; stops at a bracket of
-/// [`WHITE_TOLERANCE`] or after [`WHITE_STEPS`] evaluations.
+/// [`SEARCH_TOLERANCE`] or after [`SEARCH_STEPS`] evaluations.
 fn brent_max(
     f: &mut impl FnMut(f64) -> f64,
     (mut a, mut b): (f64, f64),
     (x0, f0): (f64, f64),
 ) -> (f64, f64) {
     const GOLDEN: f64 = 0.381_966_011_250_105;
-    let tol = 0.5 * WHITE_TOLERANCE;
+    let tol = 0.5 * SEARCH_TOLERANCE;
     // x the best point, w the second best, v the previous w; each with its value.
     let (mut x, mut w, mut v) = (x0, x0, x0);
     let (mut fx, mut fw, mut fv) = (f0, f0, f0);
     // The step before last and the last step.
     let (mut e, mut d) = (0.0f64, 0.0f64);
-    for _ in 0..WHITE_STEPS {
+    for _ in 0..SEARCH_STEPS {
         let m = 0.5 * (a + b);
         if (x - m).abs() <= 2.0 * tol - 0.5 * (b - a) {
             break;
