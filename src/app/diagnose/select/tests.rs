@@ -245,3 +245,66 @@ fn out_of_model_signal_is_unexplained_located_and_closed_model_free() {
     assert!(located * 100 >= 95 * seeds, "located {located}/{seeds}");
     assert!(closed * 100 >= 95 * seeds, "closed {closed}/{seeds}");
 }
+
+/// The tie rule of [`judge`] on its own: of two significant candidates whose held-out
+/// reductions differ by less than [`TIE_SD`] sd of the difference, the one with the smaller
+/// fit chi2 plus 2 per effect is chosen; by more, the larger reduction; a candidate that is
+/// not significant on the fit references, or not supported on the held-out ones, is never
+/// chosen, however good its fit.
+#[test]
+fn held_out_ties_are_broken_by_the_fit_references() {
+    let set = draw(&Scenario::default(), 3);
+    let sp = split(&set, 3).unwrap();
+    let fit_n = Normals::of(&set, &sp.fit).unwrap();
+    let held = Normals::of(&set, &sp.held_out).unwrap();
+    let groups = observability_of(&fit_n, &Effect::ALL).groups;
+    let covariances = Covariances::default();
+    let cx = Context::new(&fit_n, &held, &groups, &covariances);
+    let (a, b) = (Effect::AttitudeLatency, Effect::ClockDrift);
+    let (size_a, size_b) = (size_for(&set, a, 0.005), size_for(&set, b, 0.005));
+    let candidate = |effect: Effect, size: f64, fit_chi2: f64, reduction: f64| Candidate {
+        groups: Vec::new(),
+        fit: Fit {
+            effects: vec![effect],
+            estimate: vec![size],
+            sigma: vec![size / 20.0],
+            cov: DMatrix::from_element(1, 1, (size / 20.0).powi(2)),
+            chi2: fit_chi2,
+            dof: 1000,
+        },
+        p_value: 1e-9,
+        p_holm: 1.0,
+        significant: false,
+        chi2_held_out: 0.0,
+        held_out_reduction: reduction,
+        held_out_p_value: 1e-6,
+    };
+    // The sd of the difference of the two reductions (2 sqrt(d^T C^-1 d)).
+    let sd = 2.0 * held.quadratic(&[a, b], &[size_a, -size_b]).sqrt();
+    assert!(
+        sd > 1.0,
+        "the two corrections differ on the held-out references: sd {sd}"
+    );
+    // `b` behind `a`'s held-out reduction by `behind` sd, its fit chi2 smaller by
+    // `fit_better`, its held-out and fit p-values: the effect chosen.
+    let judged = |a_sd: f64, behind: f64, fit_better: f64, held_out_p: f64, fit_p: f64| {
+        let mut pair = [
+            candidate(a, size_a, 1000.0, a_sd * sd),
+            candidate(b, size_b, 1000.0 - fit_better, (a_sd - behind) * sd),
+        ];
+        (pair[1].held_out_p_value, pair[1].p_value) = (held_out_p, fit_p);
+        let chosen = judge(&cx, &mut pair, DEFAULT_ALPHA).expect("a is significant, supported");
+        pair[chosen].fit.effects[0]
+    };
+    // Tied on the held-out references: the fit chooses.
+    assert_eq!(judged(10.0, 0.5, 10.0, 1e-6, 1e-9), b);
+    assert_eq!(judged(10.0, 0.5, -10.0, 1e-6, 1e-9), a);
+    // Tied, without held-out support of its own (p 0.02 > alpha): never chosen.
+    assert_eq!(judged(10.0, 0.5, 10.0, 0.02, 1e-9), a);
+    // Told apart by the held-out references: the larger reduction, whatever the fit.
+    assert_eq!(judged(10.0, 1.5, 10.0, 1e-6, 1e-9), a);
+    // Not significant on the fit references, or reducing the held-out chi2 by less than
+    // nothing: never chosen.
+    assert_eq!(judged(10.0, 0.0, 10.0, 1e-6, 0.5), a);
+    assert_eq!(judged(0.5, 0.7, 10.0, 1e-6, 1e-9), a);
+}
