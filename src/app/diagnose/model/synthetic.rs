@@ -35,6 +35,10 @@ pub struct Scenario {
     /// `Some(k)`: a visit's returns come `k` at a time in profiles [`PROFILE_S`] apart (and
     /// share their records' white navigation noise); `None`: each at its own random time.
     pub returns_per_profile: Option<usize>,
+    /// Time (s) between the returns of one profile on a patch (the mirror's sweep across it):
+    /// with a spacing, a profile's returns straddle a record boundary and share the white
+    /// noise of the record between.
+    pub return_spacing_s: f64,
     /// A second, slow Gauss-Markov process per block beside the one of `nav_tau_s` (its
     /// shares of the declared variances); the drawn set does not declare it.
     pub nav_slow: Option<SlowNav>,
@@ -61,6 +65,7 @@ impl Default for Scenario {
             nav_scale: [1.0, 1.0],
             nav_white: [0.0, 0.0],
             returns_per_profile: None,
+            return_spacing_s: 0.0,
             nav_slow: None,
         }
     }
@@ -134,7 +139,9 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
             for i in 0..s.returns_per_visit {
                 let beta: f64 = rng.random_range(-90.0..90.0);
                 let time_s = match s.returns_per_profile {
-                    Some(k) => t0 + (i / k) as f64 * PROFILE_S,
+                    Some(k) => {
+                        t0 + (i / k) as f64 * PROFILE_S + (i % k) as f64 * s.return_spacing_s
+                    }
                     None => t0 + rng.random_range(0.0..2.0),
                 };
                 let covariates = Covariates {

@@ -950,11 +950,27 @@ mod tests {
     /// 4 sd of 1 (without it, far above).
     #[test]
     fn reml_learns_white_navigation_noise() {
+        reml_learns_white_noise(0.0, 40);
+    }
+
+    /// As [`reml_learns_white_navigation_noise`], with a profile's four returns 1 ms apart:
+    /// three in five profiles straddle a record boundary, and their returns either side share
+    /// the white noise of the record between.
+    /// The white noise of the record between them is not counted as shared (docs/diagnosis.md,
+    /// "White navigation noise"); ten times the returns, so that a 2% excess is 2 sd.
+    #[test]
+    fn reml_learns_white_noise_shared_across_a_record_boundary() {
+        reml_learns_white_noise(0.001, 400);
+    }
+
+    fn reml_learns_white_noise(return_spacing_s: f64, returns_per_visit: usize) {
         use crate::app::diagnose::model::fit::{split, Normals};
         let scenario = Scenario {
             nav_tau_s: Some([60.0, 30.0]),
             nav_white: [0.5, 0.5],
             returns_per_profile: Some(4),
+            return_spacing_s,
+            returns_per_visit,
             ..Default::default()
         };
         let set = draw(&scenario, 21);

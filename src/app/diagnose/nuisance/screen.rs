@@ -122,17 +122,19 @@ pub struct ReferenceScreen {
 /// foreign references, the returns departing by more than [`SOFT`] sigmas weighted down.
 pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, Screening) {
     let members = set.visit_members();
-    // Signed departure from the visit's surface in sigmas (NaN: not screened).
+    // Signed departures in sigmas (NaN: not screened): of each return, and as a square's
+    // test sums them ([`Departures`]).
     let mut departure = vec![f64::NAN; set.observations.len()];
+    let mut by_place = vec![f64::NAN; set.observations.len()];
     let mut spreads = vec![Vec::new(); set.reference_ids.len()];
     for m in members.iter().filter(|m| m.len() >= MIN_SCREENED) {
-        let (z, spread) = visit_departures(set, m);
-        for (&i, z) in m.iter().zip(z) {
-            departure[i] = z;
+        let d = visit_departures(set, m);
+        for (k, &i) in m.iter().enumerate() {
+            (departure[i], by_place[i]) = (d.per_return[k], d.by_place[k]);
         }
-        spreads[set.observations[m[0]].reference].push(spread);
+        spreads[set.observations[m[0]].reference].push(d.spread);
     }
-    let squares = departing_squares(set, &departure);
+    let squares = departing_squares(set, &departure, &by_place);
     // Each observation's class: set aside alone, set aside with its square, weighted down.
     let class = |o: &Observation, z: f64| {
         let alone = z.abs() > THRESHOLD;
@@ -210,13 +212,14 @@ fn square(o: &Observation) -> Option<Square> {
     })
 }
 
-/// The squares whose returns depart together from their visits' surfaces (module doc):
-/// `departure` signed, in sigmas, NaN where not screened. A square counts the returns of
-/// screened visits not set aside one by one, and is tested from [`MIN_IN_SQUARE`] of them.
-fn departing_squares(set: &ObservationSet, departure: &[f64]) -> HashSet<Square> {
+/// The squares whose returns depart together (module doc): `by_place` the departures summed
+/// ([`Departures::by_place`]), `departure` each return's ([`Departures::per_return`]), signed,
+/// in sigmas, NaN where not screened. A square counts the returns of screened visits not set
+/// aside one by one, and is tested from [`MIN_IN_SQUARE`] of them.
+fn departing_squares(set: &ObservationSet, departure: &[f64], by_place: &[f64]) -> HashSet<Square> {
     let mut sums: HashMap<Square, (f64, f64)> = HashMap::new();
-    for (o, &z) in set.observations.iter().zip(departure) {
-        if let Some(q) = square(o).filter(|_| z.abs() <= THRESHOLD) {
+    for ((o, &d), &z) in set.observations.iter().zip(departure).zip(by_place) {
+        if let Some(q) = square(o).filter(|_| d.abs() <= THRESHOLD) {
             let (n, sum) = sums.entry(q).or_default();
             *n += 1.0;
             *sum += z;
@@ -263,10 +266,26 @@ fn departing_squares(set: &ObservationSet, departure: &[f64]) -> HashSet<Square>
         .collect()
 }
 
-/// How far each return of one visit (indices `m`) departs from the visit's robust surface
-/// (signed as the residual), in units of the larger of its scanner sigma and the visit's
-/// robust spread; and that spread in units of the scanner sigma.
-fn visit_departures(set: &ObservationSet, m: &[usize]) -> (Vec<f64>, f64) {
+/// How far the returns of one visit depart (signed as the residual; [`visit_departures`]).
+struct Departures {
+    /// From the other returns between the same two trajectory records ([`record_centred`]),
+    /// in units of the larger of the return's scanner sigma and the visit's robust spread of
+    /// these departures; from the surface, as [`Departures::surface`], for a return alone
+    /// between its records or departing from the surface by more than [`THRESHOLD`].
+    per_return: Vec<f64>,
+    /// What the test of a square sums ([`departing_squares`]): the per-return departures when
+    /// the white navigation noise more than doubles the variance about the visit's surface
+    /// (the records' centres then take less signal from a thing than the white noise adds),
+    /// else the departures from the visit's robust surface, in units of the larger of the
+    /// return's scanner sigma and the visit's robust spread about it.
+    by_place: Vec<f64>,
+    /// The spread of the per-return departures in units of the scanner sigma (of the
+    /// departures from the surface when too few returns share their records).
+    spread: f64,
+}
+
+/// How far each return of one visit (indices `m`) departs ([`Departures`]).
+fn visit_departures(set: &ObservationSet, m: &[usize]) -> Departures {
     let obs = |i: usize| &set.observations[i];
     let span = |f: &dyn Fn(usize) -> f64| {
         let (lo, hi) = m
@@ -313,12 +332,112 @@ fn visit_departures(set: &ObservationSet, m: &[usize]) -> (Vec<f64>, f64) {
             scale = (1.4826 * median(inliers)).max(floor);
         }
     }
-    let departures = e
+    let surface: Vec<f64> = e
         .iter()
         .zip(sigma.iter())
         .map(|(&v, &s)| v / s.max(scale))
         .collect();
-    (departures, scale / floor)
+    let centred = record_centred(set, m, &e, &sigma);
+    let centred_scale = {
+        let c: Vec<f64> = centred.iter().filter_map(|c| c.map(f64::abs)).collect();
+        (c.len() > MIN_SCREENED).then(|| (1.4826 * median(c)).max(floor))
+    };
+    let per_return: Vec<f64> = surface
+        .iter()
+        .zip(&centred)
+        .zip(sigma.iter())
+        .map(|((&z, c), &s)| match (c, centred_scale) {
+            (Some(c), Some(cs)) if z.abs() <= THRESHOLD => c / s.max(cs),
+            _ => z,
+        })
+        .collect();
+    let white_dominates = centred_scale.is_some_and(|cs| cs * std::f64::consts::SQRT_2 < scale);
+    Departures {
+        by_place: if white_dominates {
+            per_return.clone()
+        } else {
+            surface
+        },
+        per_return,
+        spread: centred_scale.unwrap_or(scale) / floor,
+    }
+}
+
+/// The departures `e` of one visit's returns (indices `m`, scanner sigmas `sigma`), each less
+/// the median of the other returns interpolated between the same two trajectory records and
+/// scaled to the variance of one departure (`None`: alone between its records): what is left
+/// is the scanner's noise and what is foreign, without the white navigation noise the returns
+/// of one record share (one draw per record, centimetres on a ground patch against
+/// millimetres of scanner noise). The other returns' median leaves a return out of its own
+/// centre; while one departs by more than [`THRESHOLD`] scanner sigmas, the farthest is left
+/// out of the others' centres (of two returns, the one farther from the surface: each departs
+/// from the other as much).
+fn record_centred(
+    set: &ObservationSet,
+    m: &[usize],
+    e: &DVector<f64>,
+    sigma: &DVector<f64>,
+) -> Vec<Option<f64>> {
+    let mut order: Vec<usize> = (0..m.len()).collect();
+    let record = |j: usize| set.observations[m[j]].nav_record.map(|r| r.index);
+    order.sort_by_key(|&j| record(j));
+    let mut out = vec![None; m.len()];
+    for g in order.chunk_by(|&a, &b| record(a).is_some() && record(a) == record(b)) {
+        if record(g[0]).is_none() {
+            continue;
+        }
+        let mut g = g.to_vec();
+        while g.len() >= 2 {
+            let scale = (1.0 + median_variance(g.len() - 1)).sqrt().recip();
+            let c: Vec<f64> = g
+                .iter()
+                .map(|&j| {
+                    let others = g.iter().filter(|&&k| k != j).map(|&k| e[k]).collect();
+                    (e[j] - sample_median(others)) * scale
+                })
+                .collect();
+            let departs = (0..g.len()).any(|a| c[a].abs() > THRESHOLD * sigma[g[a]]);
+            // Of two returns each departs from the other as much: the surface decides.
+            let key = |a: usize| match g.len() {
+                2 => e[g[a]].abs() / sigma[g[a]],
+                _ => c[a].abs() / sigma[g[a]],
+            };
+            let worst = departs
+                .then(|| (0..g.len()).max_by(|&a, &b| key(a).total_cmp(&key(b))))
+                .flatten();
+            match worst {
+                Some(a) => {
+                    out[g[a]] = Some(c[a]);
+                    g.swap_remove(a);
+                }
+                None => {
+                    g.iter().zip(c).for_each(|(&j, c)| out[j] = Some(c));
+                    break;
+                }
+            }
+        }
+    }
+    out
+}
+
+/// The median of `v`, the mean of the middle two when their number is even (unbiased for a
+/// symmetric distribution, as [`median`]'s nearest rank is not for two values).
+fn sample_median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    (v[(n - 1) / 2] + v[n / 2]) / 2.0
+}
+
+/// Variance of the [`sample_median`] of `k` unit normals: exact to `k = 4`,
+/// `pi / 2k` beyond.
+fn median_variance(k: usize) -> f64 {
+    match k {
+        1 => 1.0,
+        2 => 0.5,
+        3 => 0.449,
+        4 => 0.361,
+        _ => std::f64::consts::FRAC_PI_2 / k as f64,
+    }
 }
 
 /// The spread of `e` about 0 from its smaller absolute values, at least `floor`: the lower
@@ -410,7 +529,7 @@ mod tests {
             .iter()
             .filter(|m| m.len() >= MIN_SCREENED)
         {
-            for (&i, z) in m.iter().zip(visit_departures(&set, m).0) {
+            for (&i, z) in m.iter().zip(visit_departures(&set, m).per_return) {
                 departure[i] = z.abs();
             }
         }
@@ -435,6 +554,57 @@ mod tests {
         assert_eq!(report.down_weighted, n_soft);
         // The moved returns (3-5.5 sigma of noise) are most of them.
         assert!(n_soft > 10, "{n_soft} weighted down");
+    }
+
+    /// White navigation position noise four times the scanner noise (sd 14 mm, one draw per
+    /// 5 ms record; returns four to a profile, 100 profiles to a visit; 3 mm scanner noise;
+    /// attitude errors negligible, since the synthetic attitude gradients are drawn per return
+    /// where a survey's returns of one record on one patch share theirs): every reference is
+    /// kept, its returns spreading about their records' centres by about one scanner sigma,
+    /// and returns moved 50-90 mm off the plane (4-6 white sds, 17-30 scanner sigmas) are set
+    /// aside, each and no other. About the visits' surfaces alone the spread is about
+    /// `sqrt(14^2 + 3^2) / 3 = 4.8` scanner sigmas: every reference would be left out.
+    #[test]
+    fn sets_aside_foreign_returns_under_white_navigation_noise() {
+        let scenario = Scenario {
+            nav_tau_s: Some([60.0, 30.0]),
+            nav_white: [0.5, 0.0],
+            returns_per_profile: Some(4),
+            returns_per_visit: 400,
+            sigma_white_m: 0.003,
+            sigma_att_rad: 1e-6,
+            ..Default::default()
+        };
+        let clean = draw(&scenario, 9);
+        let (kept, report) = screen(&clean, MAX_SHARE);
+        assert_eq!(
+            (report.set_aside, report.unused_references.len()),
+            (0, 0),
+            "{report:?}"
+        );
+        assert_eq!(kept.observations.len(), clean.observations.len());
+        let spread: Vec<f64> = clean
+            .visit_members()
+            .iter()
+            .map(|m| visit_departures(&clean, m).spread)
+            .collect();
+        assert!((0.9..1.2).contains(&median(spread.clone())), "{spread:?}");
+
+        let mut dirty = clean.clone();
+        let mut moved = Vec::new();
+        for (i, o) in dirty.observations.iter_mut().enumerate() {
+            if i % 89 == 7 {
+                o.residual_m += 0.05 + 0.04 * ((i % 5) as f64 / 4.0);
+                moved.push(i);
+            }
+        }
+        let (kept, report) = screen(&dirty, MAX_SHARE);
+        assert_eq!(report.set_aside, moved.len(), "{report:?}");
+        assert!(report.unused_references.is_empty(), "{report:?}");
+        assert_eq!(
+            kept.observations.len(),
+            dirty.observations.len() - moved.len()
+        );
     }
 
     /// A stone on a patch: returns inside a 0.2 m x 0.2 m square of one reference's patch, at
