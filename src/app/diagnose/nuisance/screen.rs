@@ -268,19 +268,22 @@ fn departing_squares(set: &ObservationSet, departure: &[f64], by_place: &[f64]) 
 
 /// How far the returns of one visit depart (signed as the residual; [`visit_departures`]).
 struct Departures {
-    /// From the other returns between the same two trajectory records ([`record_centred`]),
-    /// in units of the larger of the return's scanner sigma and the visit's robust spread of
-    /// these departures; from the surface, as [`Departures::surface`], for a return alone
-    /// between its records or departing from the surface by more than [`THRESHOLD`].
+    /// Where the visit's returns spread less about the centres of their records
+    /// ([`record_centred`]) than about the visit's robust surface (white navigation noise,
+    /// shared by a record's returns, which the surface cannot take out): from the other
+    /// returns of the record, in units of the larger of the return's scanner sigma and the
+    /// visit's robust spread of these departures. Else, and for a return alone between its
+    /// records or departing from the surface by more than [`THRESHOLD`]: from the visit's
+    /// robust surface, in units of the larger of the return's scanner sigma and the visit's
+    /// robust spread about it.
     per_return: Vec<f64>,
     /// What the test of a square sums ([`departing_squares`]): the per-return departures when
-    /// the white navigation noise more than doubles the variance about the visit's surface
-    /// (the records' centres then take less signal from a thing than the white noise adds),
-    /// else the departures from the visit's robust surface, in units of the larger of the
-    /// return's scanner sigma and the visit's robust spread about it.
+    /// the spread about the records' centres is less than the spread about the surface over
+    /// `sqrt(2)` (white navigation noise more than doubles the variance; the records' centres
+    /// then take less signal from a thing than the white noise adds), else the departures
+    /// from the visit's surface.
     by_place: Vec<f64>,
-    /// The spread of the per-return departures in units of the scanner sigma (of the
-    /// departures from the surface when too few returns share their records).
+    /// The spread of the per-return departures in units of the scanner sigma.
     spread: f64,
 }
 
@@ -342,16 +345,20 @@ fn visit_departures(set: &ObservationSet, m: &[usize]) -> Departures {
         let c: Vec<f64> = centred.iter().filter_map(|c| c.map(f64::abs)).collect();
         (c.len() > MIN_SCREENED).then(|| (1.4826 * median(c)).max(floor))
     };
+    // The sharper of the two: about the records where they share white navigation noise the
+    // surface cannot take out; about the surface where the records' returns differ by what the
+    // surface takes out and their centres do not (structure across a profile).
+    let about_records = centred_scale.filter(|&cs| cs < scale);
     let per_return: Vec<f64> = surface
         .iter()
         .zip(&centred)
         .zip(sigma.iter())
-        .map(|((&z, c), &s)| match (c, centred_scale) {
+        .map(|((&z, c), &s)| match (c, about_records) {
             (Some(c), Some(cs)) if z.abs() <= THRESHOLD => c / s.max(cs),
             _ => z,
         })
         .collect();
-    let white_dominates = centred_scale.is_some_and(|cs| cs * std::f64::consts::SQRT_2 < scale);
+    let white_dominates = about_records.is_some_and(|cs| cs * std::f64::consts::SQRT_2 < scale);
     Departures {
         by_place: if white_dominates {
             per_return.clone()
@@ -359,7 +366,7 @@ fn visit_departures(set: &ObservationSet, m: &[usize]) -> Departures {
             surface
         },
         per_return,
-        spread: centred_scale.unwrap_or(scale) / floor,
+        spread: about_records.unwrap_or(scale) / floor,
     }
 }
 
