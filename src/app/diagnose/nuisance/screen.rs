@@ -11,7 +11,10 @@
 //! started from the median and the spread of the smaller departures); a return is set aside
 //! when it departs from that surface by more than [`THRESHOLD`] times the larger of its own
 //! scanner sigma and the robust spread of the visit about the surface (so a surface that misses
-//! real structure widens the test instead of cutting into the data). A kept return departing
+//! real structure widens the test instead of cutting into the data). Where a visit's returns
+//! spread less about the other returns interpolated between the same two trajectory records
+//! (white navigation noise: one draw per record, shared by its returns, not smooth in time),
+//! their departures are taken about those instead ([`record_centred`]). A kept return departing
 //! by more than [`SOFT`] such sigmas has its scanner variance raised until it departs by
 //! [`SOFT`]: what a foreign return below the threshold (a kerb's side, from the ground up to
 //! the stone's top) adds to a chi-square is bounded, and a Gaussian return is almost never
