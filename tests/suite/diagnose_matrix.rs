@@ -22,8 +22,9 @@
 //! --nocapture` (docs/diagnosis.md). Environment: `KINESCAN_MATRIX_MODELS`,
 //! `KINESCAN_MATRIX_FOREIGN` (`off,on`), `KINESCAN_MATRIX_LENGTHS` (`lap,survey`),
 //! `KINESCAN_MATRIX_SIZES` (`2,1,0.4`), `KINESCAN_MATRIX_EFFECTS` (effect names, `none`,
-//! `out: range_cyclic`, `out: range_incidence`), `KINESCAN_MATRIX_SEEDS` (default 5), each a
-//! comma list selecting labels (an unknown label fails).
+//! `out: range_cyclic`, `out: range_incidence`), `KINESCAN_MATRIX_SEEDS` (a count, default 5, or a
+//! range of seed ordinals `a-b`), the others each a comma list selecting labels (an unknown
+//! label fails).
 
 use super::diagnose_acceptance::{
     catalogue_cases, diagnose_dir, excess_is_significant, other_cases, score, simulate_text,
@@ -500,6 +501,23 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
     fail
 }
 
+/// The seeds of each cell, by ordinal from 1: `KINESCAN_MATRIX_SEEDS` is a count `n` (the
+/// first `n`, default 5) or a range `a-b` (the `a`-th to the `b`-th), so that more seeds can
+/// be added to a table without running its first ones again.
+fn seed_ordinals() -> std::ops::RangeInclusive<u64> {
+    let text = std::env::var("KINESCAN_MATRIX_SEEDS").unwrap_or_else(|_| "5".into());
+    let bad = || panic!("KINESCAN_MATRIX_SEEDS = {text:?}: expected a count `n` or a range `a-b`");
+    let ordinal = |s: &str| s.trim().parse::<u64>().ok().filter(|&k| k >= 1);
+    let (a, b) = match text.split_once('-') {
+        Some((a, b)) => (ordinal(a), ordinal(b)),
+        None => (Some(1), ordinal(&text)),
+    };
+    match (a, b) {
+        (Some(a), Some(b)) if a <= b => a..=b,
+        _ => bad(),
+    }
+}
+
 /// The matrix (or the selected part of it): the table per cell and pooled, thresholds
 /// asserted on the pooled rows.
 #[test]
@@ -550,10 +568,7 @@ fn diagnosis_matrix() {
         .filter(|c| picked.contains(&c.label.as_str()))
         .cloned()
         .collect();
-    let seeds: u64 = std::env::var("KINESCAN_MATRIX_SEEDS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(5);
+    let seeds = seed_ordinals();
     let mut outcomes = Vec::new();
     for (i, m) in NAV_MODELS.iter().enumerate() {
         if !models.contains(&m.label) {
@@ -564,14 +579,15 @@ fn diagnosis_matrix() {
                 let length: &'static str = if *l == "lap" { "lap" } else { "survey" };
                 // The cell's own seeds, the same whichever cells are selected.
                 let cell = 4 * i as u64 + 2 * u64::from(*f == "on") + u64::from(length != "lap");
-                let first_seed = 1 + 1000 * cell;
+                let first_seed = 1000 * cell + seeds.start();
+                let n = seeds.end() + 1 - seeds.start();
                 outcomes.extend(run_cell(
                     m,
                     *f == "on",
                     length,
                     &cases,
                     &sizes,
-                    (first_seed, seeds),
+                    (first_seed, n),
                 ));
             }
         }
