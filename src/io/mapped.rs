@@ -111,11 +111,22 @@ impl MappedRecords {
     /// the range released just before; without this, every chunk boundary kept up to that much
     /// resident (74 MB over 1,220 chunks of a 0.8 GB file).
     pub fn release(&self, range: std::ops::Range<usize>) {
+        self.release_bytes(range, 0);
+    }
+
+    /// [`MappedRecords::release`], and the [`RELEASE_BEHIND_BYTES`] after the range too: for
+    /// reads that jump about the file (a visit's returns, then another visit's elsewhere),
+    /// where no later release behind would take the neighbours a fault mapped after the range.
+    pub fn release_around(&self, range: std::ops::Range<usize>) {
+        self.release_bytes(range, RELEASE_BEHIND_BYTES);
+    }
+
+    fn release_bytes(&self, range: std::ops::Range<usize>, ahead: usize) {
         let Some(map) = self.map.as_ref() else { return };
         const PAGE: usize = 4096;
         let first = self.header_bytes + range.start * self.record_bytes;
         let start = first.saturating_sub(RELEASE_BEHIND_BYTES) / PAGE * PAGE;
-        let end = (self.header_bytes + range.end * self.record_bytes).min(map.len());
+        let end = (self.header_bytes + range.end * self.record_bytes + ahead).min(map.len());
         if end > start {
             // SAFETY: the map is private and read-only; dropping its pages only makes later
             // reads fault them in again from the unchanged file.

@@ -142,6 +142,12 @@ impl ProfileFile {
         self.records.release(range)
     }
 
+    /// [`ProfileFile::release`] for a read that jumps about the file: the neighbours a fault
+    /// mapped after the range are released too.
+    pub fn release_around(&self, range: std::ops::Range<usize>) {
+        self.records.release_around(range)
+    }
+
     /// Return `i`.
     #[inline]
     pub fn get(&self, i: usize) -> RawReturn {

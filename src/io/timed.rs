@@ -139,6 +139,11 @@ impl<R: TimedRecord> TimedFile<R> {
     pub fn release(&self, range: std::ops::Range<usize>) {
         self.records.release(range);
     }
+
+    /// Lets the kernel drop every mapped page of the file (see [`TimedFile::release`]).
+    pub fn release_all(&self) {
+        self.records.release_around(0..self.len());
+    }
 }
 
 /// Streaming, atomic writer of [`TimedRecord`]s.

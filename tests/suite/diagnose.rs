@@ -87,6 +87,47 @@ fn observations_carry_an_injected_lever_arm_with_its_sign_and_account_for_every_
     );
 }
 
+/// Under an observation budget (`max_observations`, what keeps memory flat on a long survey)
+/// the kept returns stay within it, every visit keeps at least `min_per_visit`, every
+/// reference is still observed and every return is still accounted for; on the survey above
+/// a budget of a third and of a fortieth of the observations.
+#[test]
+fn an_observation_budget_bounds_the_observations_and_accounts_for_every_return() {
+    let dir = tempfile::tempdir().unwrap();
+    city_block(dir.path(), "", 7);
+    let p = config::load(&dir.path().join("pipeline.toml"), &[]).unwrap();
+    let refs = References::read(&dir.path().join("survey/patches.csv"), None).unwrap();
+    let full = observe(&p, &refs, &DiagnoseConfig::default()).unwrap();
+    let n = full.set.observations.len();
+    for budget in [n / 3, n / 40] {
+        let opts = DiagnoseConfig {
+            max_observations: budget,
+            ..Default::default()
+        };
+        let o = observe(&p, &refs, &opts).unwrap();
+        let c = &o.counts;
+        assert!(
+            c.observations as usize <= budget,
+            "{} > {budget}",
+            c.observations
+        );
+        assert_eq!(c.on_patches, full.counts.on_patches);
+        assert_eq!(c.on_patches, c.in_short_visits + c.thinned + c.observations);
+        let mut per_visit = vec![0; o.set.visits.len()];
+        for ob in &o.set.observations {
+            per_visit[ob.visit] += 1;
+        }
+        assert!(per_visit.iter().all(|&k| k >= opts.min_per_visit));
+        if budget == n / 3 {
+            assert_eq!(o.set.reference_ids, full.set.reference_ids);
+            assert_eq!(o.set.visits.len(), full.set.visits.len());
+        } else {
+            assert!(o.set.visits.len() < full.set.visits.len());
+        }
+        o.set.validate().unwrap();
+    }
+}
+
 #[test]
 fn bad_input_names_what_is_missing() {
     let dir = tempfile::tempdir().unwrap();
@@ -527,6 +568,7 @@ fn signatures_equal_finite_differences_through_the_georeferencing() {
     // Every return on a patch (no thinning), so both sides of a difference hold the same ones.
     let all = DiagnoseConfig {
         max_per_visit: usize::MAX,
+        max_observations: usize::MAX,
         ..Default::default()
     };
     let observe_with = |sets: &[String]| {

@@ -113,7 +113,7 @@ impl Learned {
     /// Screens `set` for foreign returns and estimates the navigation error model on its fit
     /// references; returns the set the statistics run on (screened, model applied).
     fn from(
-        set: &model::ObservationSet,
+        set: model::ObservationSet,
         cfg: &DiagnoseConfig,
     ) -> Result<(Self, model::ObservationSet)> {
         let (screened, screening) = nuisance::screen::screen(set, cfg.max_foreign_share);
@@ -135,7 +135,7 @@ impl Learned {
             .unwrap_or(crate::pipeline::config::START_NAV_TAU_S);
         let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
         let held_out_chi2_var = nuisance::chi2_variance(&screened, &split.held_out, &nuisance);
-        let applied = nuisance::apply(&screened, &nuisance);
+        let applied = nuisance::apply(screened, &nuisance);
         Ok((
             Learned {
                 screening,
@@ -150,13 +150,13 @@ impl Learned {
     /// model's sampling error adds to the variance of `r^T C^-1 r` on references `held_out`.
     fn apply(
         &self,
-        set: &model::ObservationSet,
+        set: model::ObservationSet,
         held_out: &[String],
     ) -> (model::ObservationSet, f64) {
         let (screened, _) = nuisance::screen::screen(set, self.screening.max_foreign_share);
         let refs = confirm::references_of(&screened, held_out);
         let var = nuisance::chi2_variance(&screened, &refs, &self.nuisance);
-        (nuisance::apply(&screened, &self.nuisance), var)
+        (nuisance::apply(screened, &self.nuisance), var)
     }
 }
 
@@ -207,7 +207,7 @@ pub fn run_joint(
     let mut observed = observe::observe_joint(ps, &refs, &cfg)?;
     bar.inc(1);
     bar.set_message("screening foreign returns, learning the navigation error model");
-    let (learned, set) = Learned::from(&observed.set, &cfg)?;
+    let (learned, set) = Learned::from(std::mem::take(&mut observed.set), &cfg)?;
     observed.set = set;
     bar.inc(1);
     bar.set_message("testing the catalogue");
@@ -264,7 +264,7 @@ fn confirm_explanation(
         fit_ids: &fit_ids,
         held_out_ids: &held_out_ids,
     };
-    let prepare = |s: &model::ObservationSet, held_out: &[String]| {
+    let prepare = |s: model::ObservationSet, held_out: &[String]| {
         bar.inc(1);
         learned.apply(s, held_out)
     };

@@ -89,6 +89,12 @@ pub struct DiagnoseConfig {
     /// At most this many returns of a visit are kept, evenly spaced in time.
     #[serde(default = "default_max_per_visit")]
     pub max_per_visit: usize,
+    /// At most this many returns on patches are kept over the survey (the observations, about
+    /// 330 B each, are the diagnosis' largest allocation): beyond it every visit keeps fewer,
+    /// evenly spaced, down to `min_per_visit`, and then visits are left out evenly (each
+    /// reference's over the whole survey). Memory stays flat with the survey's length.
+    #[serde(default = "default_max_observations")]
+    pub max_observations: usize,
     /// A return at least this bright (raw intensity) within `target_radius_m` of a control
     /// point is a return on its target.
     #[serde(default = "default_target_min_intensity")]
@@ -242,6 +248,9 @@ fn default_min_per_visit() -> usize {
 fn default_max_per_visit() -> usize {
     400
 }
+fn default_max_observations() -> usize {
+    250_000
+}
 fn default_target_min_intensity() -> u16 {
     60000
 }
@@ -347,6 +356,13 @@ impl DiagnoseConfig {
                 self.min_per_visit, self.max_per_visit
             );
             return Err(refuse("diagnose.max_per_visit", problem));
+        }
+        if self.max_observations < self.min_per_visit {
+            let problem = format!(
+                "must be at least min_per_visit ({}), got {}",
+                self.min_per_visit, self.max_observations
+            );
+            return Err(refuse("diagnose.max_observations", problem));
         }
         if self.target_min_returns < 3 {
             let problem = format!("must be >= 3, got {}", self.target_min_returns);

@@ -24,7 +24,7 @@ pub const MAX_ROUNDS: usize = 3;
 
 /// The diagnosis' screening and navigation model applied to a survey observed again, and the
 /// variance the model's sampling error adds to `r^T C^-1 r` on the held-out references named.
-pub type Prepare<'a> = dyn Fn(&ObservationSet, &[String]) -> (ObservationSet, f64) + 'a;
+pub type Prepare<'a> = dyn Fn(ObservationSet, &[String]) -> (ObservationSet, f64) + 'a;
 
 /// What to apply and where to judge it.
 pub struct Proposal<'a> {
@@ -82,7 +82,7 @@ pub fn confirm(
             .map(|(p, lines)| reprocess::corrected(p, lines, out_dir))
             .collect::<Result<Vec<_>>>()?;
         let observed = observe::observe_joint(&corrected, refs, cfg)?.set;
-        let (set, after_chi2_var) = prepare(&observed, proposal.held_out_ids);
+        let (set, after_chi2_var) = prepare(observed, proposal.held_out_ids);
         let fit_refs = references_of(&set, proposal.fit_ids);
         let refit = Normals::of(&set, &fit_refs)?.fit(&effects)?;
         let last_move_sigma = refit

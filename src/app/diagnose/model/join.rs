@@ -15,8 +15,9 @@ use crate::Result;
 impl ObservationSet {
     /// `sets` as one set: references merged by id (in order of first appearance), visits and
     /// passes numbered after those of the sets before. The sets must agree on the correlation
-    /// times. One set is returned as it is.
-    pub fn join(sets: &[ObservationSet]) -> Result<ObservationSet> {
+    /// times. One set is returned as it is; the sets are moved in, each released once joined
+    /// (the observations are the diagnosis' largest allocation: never held twice whole).
+    pub fn join(sets: Vec<ObservationSet>) -> Result<ObservationSet> {
         let Some(first) = sets.first() else {
             return Err(invalid("no observation set to join".into()));
         };
@@ -37,12 +38,21 @@ impl ObservationSet {
                 model(first)
             )));
         }
+        if sets.len() == 1 {
+            return Ok(sets.into_iter().next().expect("one set"));
+        }
         let mut joint = ObservationSet {
             nav_tau_s: first.nav_tau_s,
             nav_white_share: first.nav_white_share,
             nav_slow: first.nav_slow,
             ..Default::default()
         };
+        joint
+            .observations
+            .reserve_exact(sets.iter().map(|s| s.observations.len()).sum());
+        joint
+            .visits
+            .reserve_exact(sets.iter().map(|s| s.visits.len()).sum());
         for set in sets {
             let reference: Vec<usize> = set
                 .reference_ids
@@ -50,20 +60,20 @@ impl ObservationSet {
                 .map(|id| joint.reference_index(id))
                 .collect();
             let (visits, passes) = (joint.visits.len(), joint.passes);
-            joint.visits.extend(set.visits.iter().map(|v| {
-                let mut v = v.clone();
+            joint.visits.extend(set.visits.into_iter().map(|mut v| {
                 v.reference = reference[v.reference];
                 v.pass += passes;
                 v
             }));
-            joint.observations.extend(set.observations.iter().map(|o| {
-                let mut o = o.clone();
-                o.reference = reference[o.reference];
-                o.visit += visits;
-                o.covariates.reference_id = o.reference;
-                o.covariates.pass += passes;
-                o
-            }));
+            joint
+                .observations
+                .extend(set.observations.into_iter().map(|mut o| {
+                    o.reference = reference[o.reference];
+                    o.visit += visits;
+                    o.covariates.reference_id = o.reference;
+                    o.covariates.pass += passes;
+                    o
+                }));
             joint.passes += set.passes;
         }
         Ok(joint)
@@ -110,7 +120,7 @@ mod tests {
             for o in &mut b.observations {
                 o.covariates.time_s += shift;
             }
-            let joint = ObservationSet::join(&[a.clone(), b.clone()]).unwrap();
+            let joint = ObservationSet::join(vec![a.clone(), b.clone()]).unwrap();
             let fit = |s: &ObservationSet| {
                 let refs: Vec<usize> = (0..s.reference_ids.len()).collect();
                 let f = crate::app::diagnose::model::fit::fit(s, &refs, &[effect]).unwrap();
@@ -132,10 +142,7 @@ mod tests {
     #[test]
     fn one_set_joins_to_itself() {
         let set = draw(&Scenario::default(), 3);
-        assert_eq!(
-            ObservationSet::join(std::slice::from_ref(&set)).unwrap(),
-            set
-        );
+        assert_eq!(ObservationSet::join(vec![set.clone()]).unwrap(), set);
     }
 
     /// Two surveys: references merged by id, visits and passes of the second numbered after
@@ -153,7 +160,7 @@ mod tests {
         for v in &mut b.visits {
             v.reference = n - 1 - v.reference;
         }
-        let joint = ObservationSet::join(&[a.clone(), b.clone()]).unwrap();
+        let joint = ObservationSet::join(vec![a.clone(), b.clone()]).unwrap();
         joint.validate().unwrap();
         assert_eq!(joint.reference_ids, a.reference_ids);
         assert_eq!(joint.passes, a.passes + b.passes);
@@ -171,7 +178,7 @@ mod tests {
         assert_eq!(o.residual_m, p.residual_m);
         let mut c = b;
         c.nav_tau_s = Some([30.0, 30.0]);
-        let e = ObservationSet::join(&[a, c]).unwrap_err().to_string();
+        let e = ObservationSet::join(vec![a, c]).unwrap_err().to_string();
         assert!(e.contains("set 1") && e.contains("nav_tau_s"), "{e}");
     }
 }

@@ -265,11 +265,25 @@ fn process(x: &[f64; NP], slow: bool) -> Process {
 /// `set` with the navigation model of `nuisance`: correlation times, white shares and the slow
 /// process set and the visits' navigation covariances scaled by block (`a_p^2`, `a_a^2`,
 /// `a_p a_a` across).
-pub fn apply(set: &ObservationSet, nuisance: &Nuisance) -> ObservationSet {
-    let mut out = set.clone();
+pub fn apply(mut set: ObservationSet, nuisance: &Nuisance) -> ObservationSet {
     let (x, slow) = values(nuisance);
-    scale_into(set, &mut out, &x, slow);
-    out
+    set.nav_tau_s = Some([x[0], x[1]]);
+    // The white and slow shares are of the SMRMSG variances, the set's are of its scaled ones.
+    set.nav_white_share = [x[4] / (x[2] * x[2]), x[5] / (x[3] * x[3])];
+    set.nav_slow = slow.then_some(SlowNav {
+        share: [x[6] / (x[2] * x[2]), x[7] / (x[3] * x[3])],
+        tau_s: [x[8], x[9]],
+    });
+    let a = |k: usize| if k < 3 { x[2] } else { x[3] };
+    for v in &mut set.visits {
+        for k in 0..6 {
+            for l in 0..6 {
+                // As (c a_k) a_l: the same bits as the covariances learned with.
+                v.nav_cov[k][l] = v.nav_cov[k][l] * a(k) * a(l);
+            }
+        }
+    }
+    set
 }
 
 /// The parameters of `n` in search order, and whether its slow process is used.
@@ -290,24 +304,6 @@ fn values(n: &Nuisance) -> ([f64; NP], bool) {
         slow(|s| &s.attitude_tau_s, SLOW_START[1]),
     ];
     (x, n.slow.as_ref().is_some_and(|s| s.used))
-}
-
-fn scale_into(base: &ObservationSet, out: &mut ObservationSet, x: &[f64; NP], slow: bool) {
-    out.nav_tau_s = Some([x[0], x[1]]);
-    // The white and slow shares are of the SMRMSG variances, the set's are of its scaled ones.
-    out.nav_white_share = [x[4] / (x[2] * x[2]), x[5] / (x[3] * x[3])];
-    out.nav_slow = slow.then_some(SlowNav {
-        share: [x[6] / (x[2] * x[2]), x[7] / (x[3] * x[3])],
-        tau_s: [x[8], x[9]],
-    });
-    let a = |k: usize| if k < 3 { x[2] } else { x[3] };
-    for (v, b) in out.visits.iter_mut().zip(&base.visits) {
-        for k in 0..6 {
-            for l in 0..6 {
-                v.nav_cov[k][l] = b.nav_cov[k][l] * a(k) * a(l);
-            }
-        }
-    }
 }
 
 /// The restricted log-likelihood of the returns on the selected references as a function of
@@ -941,7 +937,7 @@ mod tests {
         let slow = n.slow.as_ref().expect("searched");
         eprintln!("one process: {slow:?}");
         assert!(!slow.used, "{slow:?}");
-        assert_eq!(apply(&set, &n).nav_slow, None);
+        assert_eq!(apply(set.clone(), &n).nav_slow, None);
     }
 
     /// Gauss-Markov errors plus white navigation noise (half of each block's variance, one
@@ -983,7 +979,7 @@ mod tests {
             w.value, n.attitude_white_share
         );
         assert!((w.value - 0.5).abs() < 4.0 * s, "{} +- {s}", w.value);
-        let held = Normals::of(&apply(&set, &n), &sp.held_out).unwrap();
+        let held = Normals::of(&apply(set.clone(), &n), &sp.held_out).unwrap();
         let per_dof = held.chi2_null() / held.n as f64;
         let sd = (2.0 / held.n as f64).sqrt();
         let without = Normals::of(&set, &sp.held_out).unwrap().chi2_null() / held.n as f64;
@@ -1010,7 +1006,7 @@ mod tests {
             let n = estimate(&set, &sp.fit, &Held::default(), [60.0, 30.0]).unwrap();
             let v = chi2_variance(&set, &sp.held_out, &n);
             assert!(v >= 0.0 && v.is_finite(), "{v}");
-            let held = Normals::of(&apply(&set, &n), &sp.held_out).unwrap();
+            let held = Normals::of(&apply(set.clone(), &n), &sp.held_out).unwrap();
             let (chi2, dof) = (held.chi2_null(), held.n as f64);
             known.push((chi2 - dof) / (2.0 * dof).sqrt());
             spread.push((chi2 - dof) / (2.0 * dof + v).sqrt());

@@ -123,7 +123,7 @@ pub struct ReferenceScreen {
 
 /// `set` without its foreign returns (one by one and by their place) and without mostly
 /// foreign references, the returns departing by more than [`SOFT`] sigmas weighted down.
-pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, Screening) {
+pub fn screen(mut set: ObservationSet, max_foreign_share: f64) -> (ObservationSet, Screening) {
     let members = set.visit_members();
     // Signed departures in sigmas (NaN: not screened): of each return, and as a square's
     // test sums them ([`Departures`]).
@@ -131,13 +131,13 @@ pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, 
     let mut by_place = vec![f64::NAN; set.observations.len()];
     let mut spreads = vec![Vec::new(); set.reference_ids.len()];
     for m in members.iter().filter(|m| m.len() >= MIN_SCREENED) {
-        let d = visit_departures(set, m);
+        let d = visit_departures(&set, m);
         for (k, &i) in m.iter().enumerate() {
             (departure[i], by_place[i]) = (d.per_return[k], d.by_place[k]);
         }
         spreads[set.observations[m[0]].reference].push(d.spread);
     }
-    let squares = departing_squares(set, &departure, &by_place);
+    let squares = departing_squares(&set, &departure, &by_place);
     // Each observation's class: set aside alone, set aside with its square, weighted down.
     let class = |o: &Observation, z: f64| {
         let alone = z.abs() > THRESHOLD;
@@ -161,31 +161,31 @@ pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, 
             not_plane || r.set_aside as f64 > max_foreign_share * r.observations as f64
         })
         .collect();
-    let mut out = ObservationSet {
-        observations: Vec::with_capacity(set.observations.len()),
-        ..set.clone_without_observations()
-    };
     let mut report = Screening {
         max_foreign_share,
         squares_set_aside: squares.iter().filter(|q| !unused[q.reference]).count(),
         ..Default::default()
     };
-    for (o, &z) in set.observations.iter().zip(&departure) {
+    // In place: the observations are the diagnosis' largest allocation.
+    let mut z = departure.iter();
+    set.observations.retain_mut(|o| {
+        let z = *z.next().expect("one departure per observation");
         let (alone, placed, soft) = class(o, z);
         if unused[o.reference] {
             report.on_unused_references += 1;
-        } else if alone || placed {
+            return false;
+        }
+        if alone || placed {
             report.set_aside += 1;
             report.by_place += usize::from(placed);
-        } else {
-            let mut o = o.clone();
-            if soft {
-                report.down_weighted += 1;
-                o.var_white_m2 *= (z / SOFT).powi(2);
-            }
-            out.observations.push(o);
+            return false;
         }
-    }
+        if soft {
+            report.down_weighted += 1;
+            o.var_white_m2 *= (z / SOFT).powi(2);
+        }
+        true
+    });
     for (r, s) in per_ref.iter().enumerate() {
         if s.set_aside > 0 || s.down_weighted > 0 {
             report.by_reference.insert(set.reference_ids[r].clone(), *s);
@@ -194,7 +194,7 @@ pub fn screen(set: &ObservationSet, max_foreign_share: f64) -> (ObservationSet, 
             report.unused_references.push(set.reference_ids[r].clone());
         }
     }
-    (out, report)
+    (set, report)
 }
 
 /// A [`CELL_M`] square of one reference's patch.
@@ -488,7 +488,7 @@ mod tests {
             ..Default::default()
         };
         let clean = draw(&scenario, 5);
-        let (kept, report) = screen(&clean, MAX_SHARE);
+        let (kept, report) = screen(clean.clone(), MAX_SHARE);
         assert_eq!(report.set_aside, 0, "{report:?}");
         assert_eq!(kept.observations.len(), clean.observations.len());
 
@@ -500,7 +500,7 @@ mod tests {
                 moved.push(i);
             }
         }
-        let (kept, report) = screen(&dirty, MAX_SHARE);
+        let (kept, report) = screen(dirty.clone(), MAX_SHARE);
         assert_eq!(report.set_aside, moved.len(), "{report:?}");
         assert!(report.unused_references.is_empty());
         assert_eq!(
@@ -543,7 +543,7 @@ mod tests {
                 departure[i] = z.abs();
             }
         }
-        let (kept, report) = screen(&set, MAX_SHARE);
+        let (kept, report) = screen(set.clone(), MAX_SHARE);
         assert_eq!(report.set_aside, 0, "{report:?}");
         assert_eq!(kept.observations.len(), set.observations.len());
         let mut n_soft = 0;
@@ -586,7 +586,7 @@ mod tests {
             ..Default::default()
         };
         let clean = draw(&scenario, 9);
-        let (kept, report) = screen(&clean, MAX_SHARE);
+        let (kept, report) = screen(clean.clone(), MAX_SHARE);
         assert_eq!(
             (report.set_aside, report.unused_references.len()),
             (0, 0),
@@ -608,7 +608,7 @@ mod tests {
                 moved.push(i);
             }
         }
-        let (kept, report) = screen(&dirty, MAX_SHARE);
+        let (kept, report) = screen(dirty.clone(), MAX_SHARE);
         assert_eq!(report.set_aside, moved.len(), "{report:?}");
         assert!(report.unused_references.is_empty(), "{report:?}");
         assert_eq!(
@@ -634,7 +634,7 @@ mod tests {
             let r2 = [0.754_877_666_246_692_7, 0.569_840_290_998_053_3];
             o.plane_uv_m = r2.map(|a: f64| ((i as f64 + 0.5) * a).fract() as f32);
         }
-        let (_, clean) = screen(&set, MAX_SHARE);
+        let (_, clean) = screen(set.clone(), MAX_SHARE);
         assert_eq!(
             (clean.by_place, clean.squares_set_aside),
             (0, 0),
@@ -650,7 +650,7 @@ mod tests {
             o.residual_m += 2.5 * o.var_white_m2.sqrt();
             stone += 1;
         }
-        let (kept, report) = screen(&set, MAX_SHARE);
+        let (kept, report) = screen(set.clone(), MAX_SHARE);
         assert_eq!(report.squares_set_aside, 4, "{report:?}");
         assert_eq!(report.by_place, stone, "{report:?}");
         assert!(kept.observations.iter().all(|o| !on_stone(o)));
@@ -666,7 +666,7 @@ mod tests {
                 o.residual_m += 0.12;
             }
         }
-        let (kept, report) = screen(&set, MAX_SHARE);
+        let (kept, report) = screen(set.clone(), MAX_SHARE);
         assert_eq!(
             report.unused_references,
             vec!["P3".to_string()],

@@ -13,30 +13,26 @@ pub fn observe_joint(
     refs: &References,
     opts: &DiagnoseConfig,
 ) -> Result<Observed> {
-    let mut observed = Vec::with_capacity(ps.len());
+    let mut sets = Vec::with_capacity(ps.len());
+    let mut summed: Option<(ObserveCounts, _)> = None;
     for p in ps {
-        observed.push(observe(p, refs, opts)?);
+        let Observed { set, counts, rates } = observe(p, refs, opts)?;
+        sets.push(set);
+        match &mut summed {
+            Some((all, _)) => all.add(&counts),
+            None => summed = Some((counts, rates)),
+        }
     }
-    let sets: Vec<ObservationSet> = observed.iter().map(|o| o.set.clone()).collect();
-    let set = ObservationSet::join(&sets)?;
-    let mut all = observed.into_iter();
-    let Some(first) = all.next() else {
+    let Some((mut counts, rates)) = summed else {
         return Err(Error::Invalid("diagnosis: no pipeline to observe".into()));
     };
-    let mut counts = first.counts;
-    for o in all {
-        counts.add(&o.counts);
-    }
+    let set = ObservationSet::join(sets)?;
     let unobserved = |id: &String| !set.reference_ids.contains(id);
     counts.patches_without_observations.retain(unobserved);
     counts
         .control_points_without_observations
         .retain(unobserved);
-    Ok(Observed {
-        set,
-        counts,
-        rates: first.rates,
-    })
+    Ok(Observed { set, counts, rates })
 }
 
 impl ObserveCounts {

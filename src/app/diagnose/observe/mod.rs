@@ -3,9 +3,9 @@
 //! predicted variance parts and the signatures of the catalogue effects (docs/diagnosis.md).
 //!
 //! Two passes over the returns: the first georeferences every return with the configured
-//! values (in parallel) and keeps those on a patch; the second groups them into visits
-//! (time-contiguous runs over one patch in one pass), thins long visits evenly in time and
-//! computes each kept return's terms from the analytic Jacobian of the uncertainty model
+//! values (in parallel) and files those on a patch into visits as it goes ([`visits`]:
+//! time-contiguous runs over one patch in one pass, long ones thinned evenly in time, at most
+//! `max_observations` returns kept in all); the second computes each kept return's terms from the analytic Jacobian of the uncertainty model
 //! (`crate::uncertainty::PointGeometry::jacobian_e`). Every return read is counted in exactly
 //! one class of [`ObserveCounts`].
 
@@ -14,6 +14,7 @@ mod joint;
 mod nothing_left;
 mod patch_index;
 mod targets;
+mod visits;
 
 pub use counts::{ObserveCounts, Observed};
 pub use joint::observe_joint;
@@ -37,6 +38,7 @@ use rayon::prelude::*;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use targets::{TargetIndex, TargetVisit};
+use visits::{Hit, PendingVisit, VisitRule, Visits};
 
 /// Returns per parallel work item of the first pass.
 const CHUNK_RETURNS: usize = 1 << 15;
@@ -123,26 +125,23 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         control_points_read: refs.control_points.len(),
         ..Default::default()
     };
-    let mut found = Found::default();
     let rates = traj.rate_check();
+    let mut visits = Visits::new(VisitRule::patches(opts));
+    let mut target_visits = Visits::new(VisitRule::targets(opts));
     for (pass, input) in files.iter().enumerate() {
         let model = ReturnModel::new(p, &traj, &input.file)?;
         let at = (&index, &targets);
-        first_pass(&model, &input.file, (pass, at), &mut found, &mut counts);
+        let found = (&mut visits, &mut target_visits);
+        first_pass(&model, &input.file, (pass, at), found, &mut counts);
     }
-    let Found {
-        patches: hits,
-        targets: target_hits,
-    } = found;
-    if hits.is_empty() {
+    if counts.on_patches == 0 {
         nothing_left::check_rejected(p, &counts)?;
     }
-    check_found(refs, opts, &hits, &target_hits)?;
-    let rule = VisitRule::patches(opts);
-    let (visits, short, thinned) = group_visits(hits, &rule);
+    check_found(refs, opts, &counts)?;
+    let (visits, short, thinned) = visits.finish();
     counts.in_short_visits = short;
     counts.thinned = thinned;
-    let (target_visits, short, _) = group_visits(target_hits, &VisitRule::targets(opts));
+    let (target_visits, short, _) = target_visits.finish();
     counts.target_returns_unused = short;
     let any_visit = !visits.is_empty() || !target_visits.is_empty();
     nothing_left::check_visits(p, opts, &counts, any_visit)?;
@@ -171,13 +170,8 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
 
 /// Refuses references no return reaches: patches none lies on, control points (when given)
 /// none is found near.
-fn check_found(
-    refs: &References,
-    opts: &DiagnoseConfig,
-    hits: &Hits,
-    target_hits: &Hits,
-) -> Result<()> {
-    if hits.is_empty() {
+fn check_found(refs: &References, opts: &DiagnoseConfig, counts: &ObserveCounts) -> Result<()> {
+    if counts.on_patches == 0 {
         let problem = format!(
             "no return of the survey falls on any of its {} patches (inside the rectangle less \
              {} m, within {} m of the plane): the patches are not where the survey scanned, \
@@ -188,7 +182,7 @@ fn check_found(
         );
         return Err(Error::bad_file(&refs.patches_path, problem));
     }
-    if let (Some(path), true) = (&refs.control_points_path, target_hits.is_empty()) {
+    if let (Some(path), 0) = (&refs.control_points_path, counts.on_targets) {
         let problem = format!(
             "no return of the survey is found on any of its {} control points' targets (at \
              least diagnose.target_min_intensity = {} bright, within diagnose.target_radius_m \
@@ -201,26 +195,6 @@ fn check_found(
         return Err(Error::bad_file(path, problem));
     }
     Ok(())
-}
-
-/// One return on a reference (a patch or a control point's target), from the first pass:
-/// its record in the pass's file and its time (s). 16 bytes: the first pass holds one per
-/// return on a reference until the visits are thinned.
-#[derive(Debug, Clone, Copy)]
-struct Hit {
-    index: usize,
-    t_s: f64,
-}
-
-/// Hits by (reference, pass), each list in file order.
-type Hits = BTreeMap<(usize, usize), Vec<Hit>>;
-
-/// A visit before its observations are computed: reference (patch or control point), pass
-/// and the kept returns.
-struct PendingVisit {
-    patch: usize,
-    pass: usize,
-    hits: Vec<Hit>,
 }
 
 /// The configured georeferencing of one profile file's returns (docs/conventions.md §2, §4).
@@ -399,20 +373,14 @@ struct ChunkTally {
     target_hits: Vec<(usize, Hit)>,
 }
 
-/// The returns of every file on the references.
-#[derive(Default)]
-struct Found {
-    patches: Hits,
-    targets: Hits,
-}
-
-/// Georeferences every return of one file (pass `pass`) and files those on a control
-/// point's target (first) or on a patch into `found`, a batch of chunks at a time.
+/// Georeferences every return of one file (pass `pass`) and gives those on a control
+/// point's target (first) or on a patch to their visits (`found`: the patches', the
+/// targets'), a batch of chunks at a time.
 fn first_pass(
     model: &ReturnModel,
     file: &ProfileFile,
     (pass, at): (usize, (&PatchIndex, &TargetIndex)),
-    found: &mut Found,
+    (patches, targets): (&mut Visits, &mut Visits),
     counts: &mut ObserveCounts,
 ) {
     let n = file.len();
@@ -438,12 +406,13 @@ fn first_pass(
             counts.on_patches += t.hits.len() as u64;
             counts.on_targets += t.target_hits.len() as u64;
             for (patch, h) in t.hits {
-                found.patches.entry((patch, pass)).or_default().push(h);
+                patches.push((patch, pass), h);
             }
             for (point, h) in t.target_hits {
-                found.targets.entry((point, pass)).or_default().push(h);
+                targets.push((point, pass), h);
             }
         }
+        model.traj.release();
     }
     counts.returns_read += n as u64;
 }
@@ -483,74 +452,6 @@ fn chunk_tally(
     }
     file.release(range);
     tally
-}
-
-/// How returns on one reference in one pass make visits.
-struct VisitRule {
-    gap_s: f64,
-    max_s: f64,
-    min_returns: usize,
-    max_returns: usize,
-}
-
-impl VisitRule {
-    fn patches(opts: &DiagnoseConfig) -> Self {
-        VisitRule {
-            gap_s: opts.visit_gap_s,
-            max_s: opts.max_visit_s,
-            min_returns: opts.min_per_visit,
-            max_returns: opts.max_per_visit,
-        }
-    }
-
-    /// A target visit keeps all its returns: their centroid is the observation.
-    fn targets(opts: &DiagnoseConfig) -> Self {
-        VisitRule {
-            min_returns: opts.target_min_returns,
-            max_returns: usize::MAX,
-            ..VisitRule::patches(opts)
-        }
-    }
-}
-
-/// Splits the hits of each reference and pass into visits, drops short ones and thins long
-/// ones. Gives the visits and the numbers of returns in short visits and thinned out.
-fn group_visits(hits: Hits, rule: &VisitRule) -> (Vec<PendingVisit>, u64, u64) {
-    let (mut visits, mut short, mut thinned) = (Vec::new(), 0, 0);
-    for ((patch, pass), mut list) in hits {
-        list.sort_by(|a, b| a.t_s.total_cmp(&b.t_s).then(a.index.cmp(&b.index)));
-        let mut start = 0;
-        for k in 1..=list.len() {
-            let split = k == list.len()
-                || list[k].t_s - list[k - 1].t_s > rule.gap_s
-                || list[k].t_s - list[start].t_s > rule.max_s;
-            if !split {
-                continue;
-            }
-            let run = &list[start..k];
-            start = k;
-            if run.len() < rule.min_returns {
-                short += run.len() as u64;
-                continue;
-            }
-            let kept = thin_evenly(run, rule.max_returns);
-            thinned += (run.len() - kept.len()) as u64;
-            visits.push(PendingVisit {
-                patch,
-                pass,
-                hits: kept,
-            });
-        }
-    }
-    (visits, short, thinned)
-}
-
-/// At most `max` of `run`, evenly spaced by position (first one kept).
-fn thin_evenly(run: &[Hit], max: usize) -> Vec<Hit> {
-    if run.len() <= max {
-        return run.to_vec();
-    }
-    (0..max).map(|k| run[k * run.len() / max]).collect()
 }
 
 /// Visits observed side by side in [`second_pass`] before their observations join the set.
@@ -705,6 +606,9 @@ fn observe_visit(
         .map(|h| model.relocate(file, h.index, &mut cursor))
         .collect::<Result<Vec<_>>>()?;
     release_visit(file, &pv.hits);
+    // The visits of a batch lie all over the day: their trajectory pages are released with
+    // their returns' (a fault maps up to a 2 MiB folio of the SBET).
+    model.traj.release();
     let n_e = frame.axes_e.row(2).transpose();
     let pairs = located.iter().map(|(r, loc)| (r, loc));
     let ranges = denoised_ranges_m(pairs, model, &n_e, &frame.centre_e);
@@ -735,14 +639,15 @@ fn observe_visit(
     Ok((v, obs))
 }
 
-/// Releases the pages of the records a visit read: the second pass reads a few returns per
-/// page, and a page left resident per observation would hold hundreds of MB.
+/// Releases the pages of the records a visit read, and the neighbours their faults mapped
+/// after them: the second pass reads a few returns per page and jumps between visits, and
+/// what it left resident grew with the survey (150 MB of a 4.8 GB file at 1.2e8 returns).
 fn release_visit(file: &ProfileFile, hits: &[Hit]) {
     let (lo, hi) = hits.iter().fold((usize::MAX, 0), |(lo, hi), h| {
         (lo.min(h.index), hi.max(h.index + 1))
     });
     if lo < hi {
-        file.release(lo..hi);
+        file.release_around(lo..hi);
     }
 }
 

@@ -336,7 +336,7 @@ mod tests {
         };
         let learned = |set: &ObservationSet, sp: &Split| {
             let n = estimate(set, &sp.fit, &Held::default(), [60.0, 30.0]).unwrap();
-            (apply(set, &n), n)
+            (apply(set.clone(), &n), n)
         };
         let seeds = 60;
         let mut named = 0;
