@@ -216,6 +216,16 @@ impl Trajectory {
         }
     }
 
+    /// [`Trajectory::release`] of the records from `t0_s` to `t1_s` only (s, GPS; widened by
+    /// `margin_s` for the latencies): for a visit, whose neighbours in the batch other threads
+    /// may be reading.
+    pub fn release_times(&self, t0_s: f64, t1_s: f64, margin_s: f64) {
+        self.sbet.release_times(t0_s - margin_s, t1_s + margin_s);
+        if let Some(m) = &self.smrmsg {
+            m.release_times(t0_s - margin_s, t1_s + margin_s);
+        }
+    }
+
     /// First and last SBET times (s).
     pub fn span_s(&self) -> (f64, f64) {
         (self.sbet.time_s(0), self.sbet.time_s(self.sbet.len() - 1))

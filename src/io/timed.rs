@@ -144,6 +144,26 @@ impl<R: TimedRecord> TimedFile<R> {
     pub fn release_all(&self) {
         self.records.release_around(0..self.len());
     }
+
+    /// Lets the kernel drop the mapped pages of the records from `t0_s` to `t1_s` (s), with
+    /// one record either side and the neighbours a fault maps with them.
+    pub fn release_times(&self, t0_s: f64, t1_s: f64) {
+        let first_after = |t: f64| {
+            let (mut lo, mut hi) = (0, self.len());
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if self.time_s(mid) <= t {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo
+        };
+        let start = first_after(t0_s).saturating_sub(1);
+        let end = (first_after(t1_s) + 1).min(self.len());
+        self.records.release_around(start..end);
+    }
 }
 
 /// Streaming, atomic writer of [`TimedRecord`]s.

@@ -454,6 +454,9 @@ fn chunk_tally(
     tally
 }
 
+/// Seconds either side of a visit whose trajectory records it releases ([`observe_visit`]).
+const TRAJECTORY_MARGIN_S: f64 = 1.0;
+
 /// Visits observed side by side in [`second_pass`] before their observations join the set.
 const VISIT_BATCH: usize = 256;
 
@@ -606,9 +609,12 @@ fn observe_visit(
         .map(|h| model.relocate(file, h.index, &mut cursor))
         .collect::<Result<Vec<_>>>()?;
     release_visit(file, &pv.hits);
-    // The visits of a batch lie all over the day: their trajectory pages are released with
-    // their returns' (a fault maps up to a 2 MiB folio of the SBET).
-    model.traj.release();
+    // The visits of a batch lie all over the day: each visit's trajectory pages are released
+    // with its returns' (a fault maps up to a 2 MiB folio of the SBET); the margin covers the
+    // latencies and the SMRMSG's coarser records.
+    model
+        .traj
+        .release_times(t_first, t_last, TRAJECTORY_MARGIN_S);
     let n_e = frame.axes_e.row(2).transpose();
     let pairs = located.iter().map(|(r, loc)| (r, loc));
     let ranges = denoised_ranges_m(pairs, model, &n_e, &frame.centre_e);
