@@ -395,31 +395,39 @@ fn a_killed_day_resumes_to_identical_bytes_and_counts() {
     let layout = "{ kind = \"per_pass\" }";
     let whole = day_file(d, "whole", "whole", layout, &three_passes());
     let killed = day_file(d, "killed", "killed", layout, &three_passes());
-    // Early in the run: each killed run does at most about a quarter of the day, so the
-    // first three (at least) are still working when killed.
-    assert_kills_resume(&whole, &killed, (0.02, 0.25), 3);
+    // Early in a unit: each run killed a seeded share of the whole run's time after its start,
+    // or as soon as it journals a unit if that comes first, so each run adds at most about
+    // one of the six units however the machine's load changed since the whole run was timed.
+    assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out, before| {
+        wait_for_journal(out, before, rng.range(0.02, 0.25) * run_s);
+    });
+}
+
+/// The lines (finished units) of the journal of the day writing into `out`.
+pub fn journal_lines(out: &Path) -> usize {
+    let journal = std::fs::read(out.join("journal.jsonl")).unwrap_or_default();
+    journal.iter().filter(|&&b| b == b'\n').count()
+}
+
+/// Waits until the journal in `out` holds more than `lines` lines or `timeout_s` (s) passed.
+pub fn wait_for_journal(out: &Path, lines: usize, timeout_s: f64) {
+    let started = Instant::now();
+    while journal_lines(out) <= lines && started.elapsed().as_secs_f64() < timeout_s {
+        std::thread::sleep(Duration::from_micros(100));
+    }
 }
 
 /// Runs the day `whole` to its end, then the same day `killed` five times (each day file
 /// `<name>.toml` writing into `<name>/` beside it, as [`day_file`] makes them with `out` =
-/// `name`), each killed (SIGKILL or SIGTERM, alternately) after a seeded share in `window` of
-/// the uninterrupted run's time, and once more to its end: at least `interrupted` of the five
-/// runs were stopped, and the LAS files and counts are those of `whole`.
-pub fn assert_kills_resume(whole: &Path, killed: &Path, window: (f64, f64), interrupted: usize) {
-    assert_kills_resume_when(whole, killed, interrupted, |rng, run_s, _| {
-        std::thread::sleep(Duration::from_secs_f64(
-            rng.range(window.0, window.1) * run_s,
-        ));
-    });
-}
-
-/// [`assert_kills_resume`], each run killed once `wait` returns: given the seeded generator,
-/// the uninterrupted run's time (s) and the killed day's output folder.
+/// `name`), each killed (SIGKILL or SIGTERM, alternately) once `wait` returns, and once more to
+/// its end: at least `interrupted` of the five runs were stopped, and the LAS files and counts
+/// are those of `whole`. `wait` is given the seeded generator, the uninterrupted run's time
+/// (s), the killed day's output folder and its journal's lines before the run started.
 pub fn assert_kills_resume_when(
     whole: &Path,
     killed: &Path,
     interrupted: usize,
-    wait: impl Fn(&mut Lcg, f64, &Path),
+    wait: impl Fn(&mut Lcg, f64, &Path, usize),
 ) {
     let out = |day: &Path| day.with_extension("");
     let started = Instant::now();
@@ -428,13 +436,14 @@ pub fn assert_kills_resume_when(
     let mut rng = Lcg(14);
     let mut stopped = 0;
     for k in 0..5 {
+        let before = journal_lines(&out(killed));
         let mut child = Command::new(env!("CARGO_BIN_EXE_kinescan"))
             .args(["day", killed.to_str().unwrap(), "-q"])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
             .unwrap();
-        wait(&mut rng, run_s, &out(killed));
+        wait(&mut rng, run_s, &out(killed), before);
         if k % 2 == 0 {
             child.kill().unwrap(); // SIGKILL
         } else {
@@ -444,7 +453,7 @@ pub fn assert_kills_resume_when(
         let status = child.wait().unwrap();
         stopped += usize::from(!status.success());
     }
-    // A kill after the run ended interrupts nothing; the seeded delays must stop enough runs.
+    // A kill after the run ended interrupts nothing; the waits must stop enough runs.
     assert!(
         stopped >= interrupted,
         "only {stopped} of 5 runs were interrupted"
@@ -477,23 +486,28 @@ fn passes_of_several_units() -> Vec<Pass> {
 fn a_day_killed_inside_passes_of_several_units_resumes_to_identical_bytes() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    simulated_day(d);
+    // 300 returns a profile (60,000 a pass file) in units of 0.5 s: four units of each file
+    // on the 16,384-return chunk grid, twelve in all.
+    simulated_day_of(d, sim_support::BASE);
     let layout = "{ kind = \"per_pass\" }";
     let whole = day_file(d, "whole", "whole", layout, &passes_of_several_units());
     let killed = day_file(d, "killed", "killed", layout, &passes_of_several_units());
-    // Each run killed once it has journalled a unit, a seeded moment into the next one: inside
-    // a pass (its units write into its file), whatever the machine's speed.
-    let lines = |out: &Path| {
-        let journal = std::fs::read(out.join("journal.jsonl")).unwrap_or_default();
-        journal.iter().filter(|&&b| b == b'\n').count()
-    };
-    assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out| {
-        let before = lines(out);
-        let started = Instant::now();
-        while lines(out) == before && started.elapsed().as_secs_f64() < 10.0 * run_s {
-            std::thread::sleep(Duration::from_micros(100));
-        }
-        std::thread::sleep(Duration::from_secs_f64(rng.range(0.0, 0.05) * run_s));
+    for day in [&whole, &killed] {
+        let text = std::fs::read_to_string(day).unwrap();
+        std::fs::write(day, text.replace("unit_s = 2.0", "unit_s = 0.5")).unwrap();
+    }
+    // Each run killed once it has journalled a unit, a seeded moment into the next one (up to
+    // half the journalled unit's time, or when the next is journalled if that comes first):
+    // inside a pass (its units write into its file), each run adding one or two of the six
+    // units whatever the machine's speed.
+    assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out, before| {
+        wait_for_journal(out, before, 10.0 * run_s);
+        let journal = std::fs::read_to_string(out.join("journal.jsonl")).unwrap_or_default();
+        let unit_s = journal.lines().nth(before).map_or(0.0, |line| {
+            let entry: serde_json::Value = serde_json::from_str(line).unwrap();
+            entry["seconds"].as_f64().unwrap()
+        });
+        wait_for_journal(out, before + 1, rng.range(0.0, 0.5) * unit_s);
     });
 }
 

@@ -10,7 +10,7 @@ use kinescan::geo::projection::MapFrame;
 use kinescan::sim::read_truth_points;
 use nalgebra::Vector3;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 /// The injected effect: the sensor's true range zero is 3 cm beyond the template's.
 const RANGE_ZERO_ERROR: &str = "range_zero_error_m = 0.03";
@@ -308,17 +308,10 @@ fn a_killed_auto_corrected_day_resumes_to_identical_bytes() {
     // night's diagnosis or after it, whatever the machine's speed (a kill timed on the whole
     // run alone, about 0.5 s, interrupted none of five runs in the loaded full suite; this
     // way five of five).
-    let journal_lines = |out: &Path| {
-        let journal = std::fs::read(out.join("journal.jsonl")).unwrap_or_default();
-        journal.iter().filter(|&&b| b == b'\n').count()
-    };
-    crate::day::assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out| {
+    crate::day::assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out, _| {
         let units = json(&d.join("whole/day.report.json"))["units"].as_u64();
         let units = units.unwrap() as usize;
-        let started = Instant::now();
-        while journal_lines(out) < units && started.elapsed().as_secs_f64() < 10.0 * run_s {
-            std::thread::sleep(Duration::from_micros(100));
-        }
+        crate::day::wait_for_journal(out, units - 1, 10.0 * run_s);
         std::thread::sleep(Duration::from_secs_f64(rng.range(0.0, 0.2) * run_s));
     });
 }
