@@ -498,7 +498,7 @@ fn a_day_killed_inside_passes_of_several_units_resumes_to_identical_bytes() {
     }
     // Each run killed once it has journalled a unit, a seeded moment into the next one (up to
     // half the journalled unit's time, or when the next is journalled if that comes first):
-    // inside a pass (its units write into its file), each run adding one or two of the six
+    // inside a pass (its units write into its file), each run adding one or two of the twelve
     // units whatever the machine's speed.
     assert_kills_resume_when(&whole, &killed, 3, |rng, run_s, out, before| {
         wait_for_journal(out, before, 10.0 * run_s);
