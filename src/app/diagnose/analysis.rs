@@ -4,7 +4,7 @@
 //! "Statistics").
 
 use super::locate::{locate, located_in, model_free, Correction, CovariateTest};
-use super::model::fit::{split, Split};
+use super::model::fit::{split, Normals, Split};
 use super::model::metrics::{gap, Gap};
 use super::model::{Covariate, ObservationSet};
 use super::select::{select, Selection, Verdict};
@@ -60,11 +60,19 @@ pub struct Analysis {
     pub reason: String,
 }
 
-/// Runs the statistics on `set`.
-pub fn analyse(set: &ObservationSet, settings: &Settings) -> Result<Analysis> {
+/// Runs the statistics on `set`; `others` are the fit references' normals under the other
+/// navigation models the selection's tests take their largest p-value over
+/// ([`select`]).
+pub fn analyse(set: &ObservationSet, settings: &Settings, others: &[Normals]) -> Result<Analysis> {
     let split = split(set, settings.seed)?;
     let before = gap(set, &split.held_out, None)?;
-    let selection = select(set, &split, settings.alpha, settings.held_out_chi2_var)?;
+    let selection = select(
+        set,
+        &split,
+        settings.alpha,
+        settings.held_out_chi2_var,
+        others,
+    )?;
     let after_linear = selection
         .correction()
         .map(|t| gap(set, &split.held_out, Some(t)))
@@ -274,7 +282,7 @@ mod tests {
             ..Default::default()
         };
         fill_residuals(&mut set, &s, 40);
-        let a = analyse(&set, &Settings::default()).unwrap();
+        let a = analyse(&set, &Settings::default(), &[]).unwrap();
         assert_eq!(a.selection.verdict, Verdict::Effect, "{}", a.reason);
         assert_eq!(a.selection.effects, vec![Effect::BoresightY]);
         let after = a.after_linear.unwrap();
@@ -295,7 +303,7 @@ mod tests {
             },
             4,
         );
-        let a = analyse(&set, &Settings::default()).unwrap();
+        let a = analyse(&set, &Settings::default(), &[]).unwrap();
         assert_eq!(a.selection.verdict, Verdict::Unexplained, "{}", a.reason);
         assert_eq!(a.located_in, vec![Covariate::RangeM], "{}", a.reason);
         let c = a.model_free.as_ref().unwrap();

@@ -105,6 +105,9 @@ struct Statistics {
 struct Learned {
     screening: nuisance::screen::Screening,
     nuisance: nuisance::Nuisance,
+    /// The fit references' normals under the models at the ends of the attitude correlation
+    /// time's profile interval (`nuisance::interval_ends`).
+    others: Vec<model::fit::Normals>,
     /// What the model's sampling error adds to the variance of the held-out `r^T C^-1 r`.
     held_out_chi2_var: f64,
 }
@@ -116,7 +119,7 @@ impl Learned {
         set: model::ObservationSet,
         cfg: &DiagnoseConfig,
     ) -> Result<(Self, model::ObservationSet)> {
-        let (screened, screening) = nuisance::screen::screen(set, cfg.max_foreign_share);
+        let (mut screened, screening) = nuisance::screen::screen(set, cfg.max_foreign_share);
         let split = model::fit::split(&screened, cfg.seed)?;
         let held = nuisance::Held {
             position_tau_s: cfg.nav_position_tau_s,
@@ -135,11 +138,16 @@ impl Learned {
             .unwrap_or(crate::pipeline::config::START_NAV_TAU_S);
         let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
         let held_out_chi2_var = nuisance::chi2_variance(&screened, &split.held_out, &nuisance);
+        let others = nuisance::interval_ends(&nuisance)
+            .iter()
+            .map(|end| nuisance::normals_under(&mut screened, end, &split.fit))
+            .collect::<Result<_>>()?;
         let applied = nuisance::apply(screened, &nuisance);
         Ok((
             Learned {
                 screening,
                 nuisance,
+                others,
                 held_out_chi2_var,
             },
             applied,
@@ -211,7 +219,7 @@ pub fn run_joint(
     observed.set = set;
     bar.inc(1);
     bar.set_message("testing the catalogue");
-    let mut stats = statistics(&observed.set, &cfg, learned.held_out_chi2_var)?;
+    let mut stats = statistics(&observed.set, &cfg, &learned)?;
     bar.inc(1);
     bar.set_message("observing again with the proposed correction");
     let confirmation =
@@ -510,15 +518,15 @@ fn output_names() -> Vec<String> {
 fn statistics(
     set: &model::ObservationSet,
     cfg: &DiagnoseConfig,
-    held_out_chi2_var: f64,
+    learned: &Learned,
 ) -> Result<Statistics> {
     let settings = analysis::Settings {
-        held_out_chi2_var,
+        held_out_chi2_var: learned.held_out_chi2_var,
         seed: cfg.seed,
         alpha: cfg.alpha,
         bins: locate::DEFAULT_BINS,
     };
-    let a = analysis::analyse(set, &settings)?;
+    let a = analysis::analyse(set, &settings, &learned.others)?;
     let sel = &a.selection;
     let model_free = a
         .model_free
@@ -608,8 +616,8 @@ fn statistics(
             );
             select::power::detectable(
                 &model::Effect::ALL,
-                &fit_n,
-                &held_n,
+                (&fit_n, &held_n),
+                &learned.others,
                 &obs.groups,
                 cfg.alpha,
                 cfg.seed,

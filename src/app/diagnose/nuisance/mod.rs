@@ -20,6 +20,7 @@
 
 use super::model::continuous::{knot_spacing_s, KnotSums, Layout, Process};
 use super::model::design::catalogue_row;
+use super::model::fit::Normals;
 use super::model::{ObservationSet, SlowNav, N_EFFECTS};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector};
@@ -151,6 +152,11 @@ pub struct Nuisance {
     /// `sigma_kind` says: what [`chi2_variance`] propagates.
     #[serde(skip)]
     pub log_covariance: [[f64; NP]; NP],
+    /// The 95% profile interval of the attitude correlation time (`None`: configured), with
+    /// the attitude scale that maximises the likelihood at each end: the navigation models the
+    /// survey cannot reject, over which the selection takes each test's largest p-value
+    /// (docs/diagnosis.md, "Tests over the profile interval").
+    pub attitude_tau_interval: Option<ProfileInterval>,
     /// Restricted log-likelihood at the values, on the fit references.
     pub reml_log_likelihood: f64,
     /// Catalogue effects held as fixed effects in the REML design.
@@ -182,6 +188,30 @@ pub struct SlowProcess {
     pub position_tau_s: Parameter,
     /// Correlation time of the slow attitude process (s).
     pub attitude_tau_s: Parameter,
+}
+
+/// The 95% profile interval of a correlation time (`diagnosis.json`
+/// `nuisance.attitude_tau_interval`).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ProfileInterval {
+    /// The short end.
+    pub short: ProfileEnd,
+    /// The long end.
+    pub long: ProfileEnd,
+}
+
+/// One end of a [`ProfileInterval`]: where the profile restricted log-likelihood has dropped
+/// by [`PROFILE_DROP_95`] from its maximum, or the bound of the search before it does.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ProfileEnd {
+    /// The correlation time (s).
+    pub tau_s: f64,
+    /// The block's scale that maximises the likelihood there (the other parameters held at
+    /// the estimate).
+    pub scale: f64,
+    /// Whether this end is the bound of the search ([`TAU_BOUNDS_S`]): the likelihood never
+    /// dropped that far, and the survey cannot reject any longer (shorter) correlation time.
+    pub at_bound: bool,
 }
 
 /// How the sigmas of a [`Nuisance`] were obtained.
@@ -266,6 +296,52 @@ fn process(x: &[f64; NP], slow: bool) -> Process {
 /// process set and the visits' navigation covariances scaled by block (`a_p^2`, `a_a^2`,
 /// `a_p a_a` across).
 pub fn apply(mut set: ObservationSet, nuisance: &Nuisance) -> ObservationSet {
+    set_model(&mut set, nuisance);
+    set
+}
+
+/// The catalogue's normals on `refs` of `set` (the SMRMSG covariances, no model applied)
+/// under the navigation model of `nuisance`; `set` is left as it was.
+pub fn normals_under(
+    set: &mut ObservationSet,
+    nuisance: &Nuisance,
+    refs: &[usize],
+) -> Result<Normals> {
+    let saved = (
+        set.nav_tau_s,
+        set.nav_white_share,
+        set.nav_slow.clone(),
+        set.visits.iter().map(|v| v.nav_cov).collect::<Vec<_>>(),
+    );
+    set_model(set, nuisance);
+    let normals = Normals::of(set, refs);
+    (set.nav_tau_s, set.nav_white_share, set.nav_slow) = (saved.0, saved.1, saved.2);
+    for (v, cov) in set.visits.iter_mut().zip(saved.3) {
+        v.nav_cov = cov;
+    }
+    normals
+}
+
+/// The models at the ends of the attitude correlation time's profile interval that differ
+/// from the estimate: `nuisance` with the end's correlation time and attitude scale.
+pub fn interval_ends(nuisance: &Nuisance) -> Vec<Nuisance> {
+    let Some(interval) = nuisance.attitude_tau_interval else {
+        return Vec::new();
+    };
+    [interval.short, interval.long]
+        .into_iter()
+        .filter(|e| e.tau_s != nuisance.attitude_tau_s.value)
+        .map(|e| {
+            let mut n = nuisance.clone();
+            n.attitude_tau_s.value = e.tau_s;
+            n.attitude_scale.value = e.scale;
+            n
+        })
+        .collect()
+}
+
+/// Sets the navigation model of `nuisance` on `set` ([`apply`]).
+fn set_model(set: &mut ObservationSet, nuisance: &Nuisance) {
     let (x, slow) = values(nuisance);
     set.nav_tau_s = Some([x[0], x[1]]);
     // The white and slow shares are of the SMRMSG variances, the set's are of its scaled ones.
@@ -283,7 +359,6 @@ pub fn apply(mut set: ObservationSet, nuisance: &Nuisance) -> ObservationSet {
             }
         }
     }
-    set
 }
 
 /// The parameters of `n` in search order, and whether its slow process is used.
@@ -523,6 +598,14 @@ pub fn estimate(
     }
     let free = reml.free_in_model();
     let (log_covariance, sigma_kind) = log_covariance(&mut reml, &x, &free, best);
+    let attitude_tau_interval = reml.free[1].then(|| {
+        // The Hessian's points leave the sums at another white share: made again here.
+        reml.resum(&x);
+        ProfileInterval {
+            short: profile_end(&mut reml, &x, best, false),
+            long: profile_end(&mut reml, &x, best, true),
+        }
+    });
     let sigma: [Option<f64>; NP] =
         std::array::from_fn(|i| (log_covariance[i][i] > 0.0).then(|| log_covariance[i][i].sqrt()));
     let param = |i: usize| Parameter {
@@ -552,11 +635,67 @@ pub fn estimate(
         }),
         sigma_kind,
         log_covariance,
+        attitude_tau_interval,
         reml_log_likelihood: best,
         fixed_effects: reml.columns.len(),
         evaluations: reml.evaluations,
         knot_spacing_s: reml.layout.knot_s,
     })
+}
+
+/// Half the 95% point of chi-square with one degree of freedom: the drop of a profile
+/// log-likelihood at the ends of its 95% interval.
+const PROFILE_DROP_95: f64 = 1.92;
+/// Factor between the correlation times tried while walking out to an end of the profile
+/// interval (the end is then interpolated in the logarithm).
+const PROFILE_STEP: f64 = 1.5;
+
+/// The short (`longer` false) or long end of the 95% profile interval of the attitude
+/// correlation time about the estimate `x` (log-likelihood `best`): at each correlation time
+/// tried the attitude scale is maximised again (the parameter it trades off against: on a
+/// survey short against the correlation time only `scale^2 / tau` is determined), the others
+/// held at the estimate.
+fn profile_end(reml: &mut Reml, x: &[f64; NP], best: f64, longer: bool) -> ProfileEnd {
+    let profile = |reml: &mut Reml, from: &[f64; NP], tau: f64| {
+        let mut y = *from;
+        y[1] = tau;
+        let at = reml.at(&y).unwrap_or(f64::NEG_INFINITY);
+        let v = if reml.free[3] {
+            search(reml, &mut y, 3, at)
+        } else {
+            at
+        };
+        (y, v)
+    };
+    let (lo, hi) = bounds(1);
+    let next = |tau: f64| {
+        if longer {
+            (tau * PROFILE_STEP).min(hi)
+        } else {
+            (tau / PROFILE_STEP).max(lo)
+        }
+    };
+    let end = |y: [f64; NP], at_bound: bool| ProfileEnd {
+        tau_s: y[1],
+        scale: y[3],
+        at_bound,
+    };
+    let (mut inside, mut inside_drop) = (*x, 0.0);
+    loop {
+        let tau = next(inside[1]);
+        if tau == inside[1] {
+            return end(inside, true);
+        }
+        let (y, v) = profile(reml, &inside, tau);
+        let drop = best - v;
+        if drop > PROFILE_DROP_95 {
+            // Between the last point inside and this one, linear in the drop and log tau.
+            let t = (PROFILE_DROP_95 - inside_drop) / (drop - inside_drop);
+            let tau_end = (inside[1].ln() + t * (tau.ln() - inside[1].ln())).exp();
+            return end(profile(reml, &inside, tau_end).0, false);
+        }
+        (inside, inside_drop) = (y, drop.max(0.0));
+    }
 }
 
 /// Time between the first and the last selected return (s).
@@ -985,6 +1124,43 @@ mod tests {
         let without = Normals::of(&set, &sp.held_out).unwrap().chi2_null() / held.n as f64;
         eprintln!("held-out chi2/dof {per_dof:.3} (sd {sd:.3}); model without white {without:.3}");
         assert!((per_dof - 1.0).abs() < 4.0 * sd, "{per_dof}");
+    }
+
+    /// The 95% profile interval of the attitude correlation time (drawn 20 s; position 40 s,
+    /// SMRMSG sigmas exact) holds the truth in about 95% of 40 draws, each end on its side of
+    /// the estimate; the normals under an end's model are those of the set with that model
+    /// applied, and the set is left as it was.
+    #[test]
+    fn the_profile_interval_holds_the_drawn_correlation_time() {
+        use crate::app::diagnose::model::fit::{split, Normals};
+        let scenario = Scenario {
+            nav_tau_s: Some([40.0, 20.0]),
+            ..Default::default()
+        };
+        let (draws, mut covered) = (40u64, 0u64);
+        for seed in 0..draws {
+            let mut set = draw(&scenario, 300 + seed);
+            let sp = split(&set, seed).unwrap();
+            let n = estimate(&set, &sp.fit, &Held::default(), [60.0, 30.0]).unwrap();
+            let i = n
+                .attitude_tau_interval
+                .expect("the correlation time is estimated");
+            let tau = n.attitude_tau_s.value;
+            assert!(i.short.tau_s < tau && tau < i.long.tau_s, "{tau}: {i:?}");
+            covered += u64::from(i.short.tau_s <= 20.0 && 20.0 <= i.long.tau_s);
+            if seed == 0 {
+                let before = set.clone();
+                let ends = interval_ends(&n);
+                assert_eq!(ends.len(), 2);
+                let under = normals_under(&mut set, &ends[1], &sp.fit).unwrap();
+                assert!(set == before, "the set is restored");
+                let applied = Normals::of(&apply(set.clone(), &ends[1]), &sp.fit).unwrap();
+                assert_eq!((under.n, under.m), (applied.n, applied.m));
+            }
+        }
+        eprintln!("profile interval covers the drawn 20 s in {covered}/{draws}");
+        // 40 draws at 0.95: sd 0.034; 3 sd below.
+        assert!(covered * 100 >= 85 * draws, "{covered}/{draws}");
     }
 
     /// The held-out chi-square under a model learned on the fit references, over 40 draws of

@@ -58,7 +58,9 @@ pub struct Candidate {
     pub fit: Fit,
     /// Likelihood-ratio p-value on the fit references: against no effect for a single group;
     /// for a pair, the largest of that and each member's test given the other (both needed);
-    /// for a greedy addition, the added group given the rest.
+    /// for a greedy addition, the added group given the rest. Each test's p-value is the
+    /// largest over the navigation models the survey cannot reject (the estimate's and the
+    /// others given to [`select`]).
     pub p_value: f64,
     /// Holm-adjusted `p_value` among the candidates of its step.
     pub p_holm: f64,
@@ -165,26 +167,62 @@ impl Selection {
 /// the residuals with one.
 type Covariances = RefCell<HashMap<Vec<Effect>, Option<DMatrix<f64>>>>;
 
-/// The fit and held-out statistics, the groups, and the covariances of the fits made.
-struct Context<'a> {
-    fit: &'a Normals,
-    held: &'a Normals,
-    groups: &'a [Group],
+/// The fit references' normals under one navigation model, and the covariances of the fits
+/// made on them.
+#[derive(Clone, Copy)]
+struct Model<'a> {
+    normals: &'a Normals,
     covariances: &'a Covariances,
 }
 
+impl Model<'_> {
+    /// The GLS fit of `effects`; `None` when inseparable.
+    fn fit_of(&self, effects: &[Effect]) -> Option<Fit> {
+        let cov = self
+            .covariances
+            .borrow_mut()
+            .entry(effects.to_vec())
+            .or_insert_with(|| self.normals.covariance(effects).ok())
+            .clone()?;
+        Some(self.normals.fit_with(effects, cov))
+    }
+
+    /// `chi2` of the GLS fit of `effects` (of no effect when empty); `None` when inseparable.
+    fn chi2_of(&self, effects: &[Effect]) -> Option<f64> {
+        if effects.is_empty() {
+            return Some(self.normals.chi2_null());
+        }
+        self.fit_of(effects).map(|f| f.chi2)
+    }
+}
+
+/// The fit and held-out statistics under the estimated navigation model, the fit
+/// references' under the others the survey cannot reject, and the groups.
+struct Context<'a> {
+    fit: Model<'a>,
+    others: Vec<Model<'a>>,
+    held: &'a Normals,
+    groups: &'a [Group],
+}
+
 impl<'a> Context<'a> {
+    /// `fit` and `covariances` under the estimated model; `others` the other models' fit
+    /// normals, each with its own covariances.
     fn new(
-        fit: &'a Normals,
+        (fit, covariances): (&'a Normals, &'a Covariances),
+        others: impl IntoIterator<Item = (&'a Normals, &'a Covariances)>,
         held: &'a Normals,
         groups: &'a [Group],
-        covariances: &'a Covariances,
     ) -> Self {
+        let model = |(normals, covariances)| Model {
+            normals,
+            covariances,
+        };
         Context {
-            fit,
+            fit: model((fit, covariances)),
+            others: others.into_iter().map(model).collect(),
             held,
             groups,
-            covariances,
         }
     }
 
@@ -194,13 +232,21 @@ impl<'a> Context<'a> {
 
     /// The GLS fit of `effects` on the fit references; `None` when inseparable.
     fn fit_of(&self, effects: &[Effect]) -> Option<Fit> {
-        let cov = self
-            .covariances
-            .borrow_mut()
-            .entry(effects.to_vec())
-            .or_insert_with(|| self.fit.covariance(effects).ok())
-            .clone()?;
-        Some(self.fit.fit_with(effects, cov))
+        self.fit.fit_of(effects)
+    }
+
+    /// The likelihood-ratio p-value of `larger` against the nested `smaller` on the fit
+    /// references: the largest of `p` (the estimated model's) and the other models' (1 where
+    /// they cannot separate the effects).
+    fn p_over_models(&self, p: f64, larger: &[Effect], smaller: &[Effect]) -> f64 {
+        let dof = larger.len() - smaller.len();
+        self.others.iter().fold(p, |worst, m| {
+            let q = match (m.chi2_of(smaller), m.chi2_of(larger)) {
+                (Some(s), Some(l)) => chi2_sf(s - l, dof),
+                _ => 1.0,
+            };
+            worst.max(q)
+        })
     }
 
     /// Fits `groups` on the fit references and judges them on the held-out ones against
@@ -237,12 +283,6 @@ impl<'a> Context<'a> {
             held_out_reduction,
             held_out_p_value,
         })
-    }
-
-    /// Likelihood-ratio p-value of `larger` against `smaller` on the fit references.
-    fn lr(&self, larger: &Fit, smaller_chi2: f64) -> f64 {
-        let dof = larger.effects.len();
-        chi2_sf(smaller_chi2 - larger.chi2, dof)
     }
 }
 
@@ -295,11 +335,11 @@ fn judge(cx: &Context, candidates: &mut [Candidate], alpha: f64) -> Option<usize
 
 /// Each group alone and every pair (the pair's p-value requires both members).
 fn first_step(cx: &Context) -> Vec<Candidate> {
-    let null_chi2 = cx.fit.chi2_null();
+    let null_chi2 = cx.fit.normals.chi2_null();
     let singles: Vec<Option<Candidate>> = (0..cx.groups.len())
         .map(|g| {
             let c = cx.candidate(vec![g], None, 1.0)?;
-            let p = chi2_sf(null_chi2 - c.fit.chi2, 1);
+            let p = cx.p_over_models(chi2_sf(null_chi2 - c.fit.chi2, 1), &c.fit.effects, &[]);
             Some(Candidate { p_value: p, ..c })
         })
         .collect();
@@ -312,10 +352,11 @@ fn first_step(cx: &Context) -> Vec<Candidate> {
             let Some(c) = cx.candidate(vec![a, b], None, 1.0) else {
                 continue;
             };
+            let pair = &c.fit.effects;
             let p = [
-                cx.lr(&c.fit, null_chi2),
-                chi2_sf(sa.fit.chi2 - c.fit.chi2, 1),
-                chi2_sf(sb.fit.chi2 - c.fit.chi2, 1),
+                cx.p_over_models(chi2_sf(null_chi2 - c.fit.chi2, 2), pair, &[]),
+                cx.p_over_models(chi2_sf(sa.fit.chi2 - c.fit.chi2, 1), pair, &sa.fit.effects),
+                cx.p_over_models(chi2_sf(sb.fit.chi2 - c.fit.chi2, 1), pair, &sb.fit.effects),
             ]
             .into_iter()
             .fold(0.0, f64::max);
@@ -339,7 +380,11 @@ fn extend(
                 let mut groups = current.groups.clone();
                 groups.push(g);
                 let c = cx.candidate(groups, Some(&current.fit), 1.0)?;
-                let p = chi2_sf(current.fit.chi2 - c.fit.chi2, 1);
+                let p = cx.p_over_models(
+                    chi2_sf(current.fit.chi2 - c.fit.chi2, 1),
+                    &c.fit.effects,
+                    &current.fit.effects,
+                );
                 Some(Candidate { p_value: p, ..c })
             })
             .collect();
@@ -367,12 +412,16 @@ fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
 /// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
 /// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default); the held-out chi-square
 /// tests with `held_out_chi2_var` added to their variance (the learned navigation model's
-/// sampling error, `nuisance::chi2_variance`; 0 with the model known).
+/// sampling error, `nuisance::chi2_variance`; 0 with the model known). `others` are the fit
+/// references' normals under the other navigation models the survey cannot reject
+/// (`nuisance::interval_ends`): each test on the fit references takes its largest p-value over
+/// them and the estimate's; estimates, sigmas and the held-out tests are the estimate's.
 pub fn select(
     set: &ObservationSet,
     split: &Split,
     alpha: f64,
     held_out_chi2_var: f64,
+    others: &[Normals],
 ) -> Result<Selection> {
     let fit_n = Normals::of(set, &split.fit)?;
     let held = Normals::of(set, &split.held_out)?;
@@ -380,7 +429,14 @@ pub fn select(
     let null_chi2 = held.chi2_null();
     let null = NullTest::new(null_chi2, held.n, alpha, held_out_chi2_var);
     let covariances = Covariances::default();
-    let cx = Context::new(&fit_n, &held, &observability.groups, &covariances);
+    let other_covariances: Vec<Covariances> =
+        others.iter().map(|_| Covariances::default()).collect();
+    let cx = Context::new(
+        (&fit_n, &covariances),
+        others.iter().zip(&other_covariances),
+        &held,
+        &observability.groups,
+    );
     let (mut candidates, chosen) = choose(&cx, alpha);
     candidates.sort_by(|a, b| b.held_out_reduction.total_cmp(&a.held_out_reduction));
 
@@ -446,9 +502,9 @@ fn named(cx: &Context, chosen: &Candidate) -> Result<Named> {
             } else {
                 let mut with = chosen.fit.effects.clone();
                 with[slot] = member;
-                match cx.fit.fit(&with) {
+                match cx.fit.normals.fit(&with) {
                     Ok(f) => (f, slot),
-                    Err(_) => (cx.fit.fit(&[member])?, 0),
+                    Err(_) => (cx.fit.normals.fit(&[member])?, 0),
                 }
             };
             effects.push(member);

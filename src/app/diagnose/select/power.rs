@@ -17,10 +17,15 @@
 //! An effect in an inseparable group is named with its group (each member here with the
 //! signature of its own).
 //!
+//! Where the selection's tests take their largest p-value over other navigation models (the
+//! ends of the profile interval, `nuisance::interval_ends`), each draw holds the fit scores
+//! under every model, made from the same unit normal draw by each model's square root of its
+//! `M`: the signal `M delta e_j` is exact under each model, and the noise is each model's own
+//! as if it were the truth (scores under two models are taken as fully correlated).
+//!
 //! What the draws leave out: the verdict's other conditions (the model without effect passes
 //! the held-out chi-square test, or the correction closes the gap on the survey observed
-//! again) and the sampling error of the learned navigation model (the normals are taken at its
-//! estimate).
+//! again) and the sampling error of the navigation model inside its profile interval.
 
 use super::observability::Group;
 use super::{choose, Context, Covariances};
@@ -91,15 +96,28 @@ fn two_test_size(fit: &Normals, held: &Normals, j: usize, z_fit: f64, z_held: f6
     Some(hi)
 }
 
-/// Draws of the scores `S^T C^-1 e` of pure noise on references with normals `normals`:
-/// `N(0, M)`, by a square root of `M` ([`sigma_sqrt`]).
-fn noise_scores(normals: &Normals, rng: &mut ChaCha8Rng) -> Vec<DVector<f64>> {
-    let m = normals.m.view((0, 0), (N_EFFECTS, N_EFFECTS)).into_owned();
-    let root = sigma_sqrt(0.5 * (&m + m.transpose()));
+/// Draws of the scores `S^T C^-1 e` of pure noise on references with normals `models` (one
+/// survey under several navigation models): each `N(0, M)`, by a square root of its `M`
+/// ([`sigma_sqrt`]) applied to one unit normal draw shared by the models (its leading
+/// entries, where a root has fewer columns). Indexed by draw,
+/// then model.
+fn noise_scores(models: &[&Normals], rng: &mut ChaCha8Rng) -> Vec<Vec<DVector<f64>>> {
+    let roots: Vec<_> = models
+        .iter()
+        .map(|normals| {
+            let m = normals.m.view((0, 0), (N_EFFECTS, N_EFFECTS)).into_owned();
+            sigma_sqrt(0.5 * (&m + m.transpose()))
+        })
+        .collect();
+    // A root may have fewer columns than effects (null directions dropped).
+    let width = roots.iter().map(|r| r.ncols()).max().unwrap_or(0);
     (0..DRAWS)
         .map(|_| {
-            let z = DVector::from_fn(root.ncols(), |_, _| StandardNormal.sample(&mut *rng));
-            &root * z
+            let z = DVector::from_fn(width, |_, _| StandardNormal.sample(&mut *rng));
+            roots
+                .iter()
+                .map(|root| root * z.rows(0, root.ncols()))
+                .collect()
         })
         .collect()
 }
@@ -120,28 +138,35 @@ fn with_effect(normals: &Normals, noise: &DVector<f64>, j: usize, delta: f64) ->
 
 /// What the power of one survey is computed from.
 struct Survey<'a> {
-    fit: &'a Normals,
+    /// The fit references' normals under the estimated navigation model, then the others.
+    fit: Vec<&'a Normals>,
     held: &'a Normals,
     groups: &'a [Group],
     alpha: f64,
-    fit_noise: Vec<DVector<f64>>,
-    held_noise: Vec<DVector<f64>>,
+    fit_noise: Vec<Vec<DVector<f64>>>,
+    held_noise: Vec<Vec<DVector<f64>>>,
 }
 
 impl Survey<'_> {
-    /// Share of the draws in which the selection names `effect` at size `delta`.
-    fn named_share(&self, effect: Effect, delta: f64, covariances: &Covariances) -> f64 {
+    /// Share of the draws in which the selection names `effect` at size `delta`
+    /// (`covariances`: one per model of `fit`).
+    fn named_share(&self, effect: Effect, delta: f64, covariances: &[Covariances]) -> f64 {
         let j = signature_index(effect);
         let named = self
             .fit_noise
             .iter()
             .zip(&self.held_noise)
             .filter(|(nf, nh)| {
-                let (fit, held) = (
-                    with_effect(self.fit, nf, j, delta),
-                    with_effect(self.held, nh, j, delta),
-                );
-                let cx = Context::new(&fit, &held, self.groups, covariances);
+                let fit: Vec<Normals> = self
+                    .fit
+                    .iter()
+                    .zip(nf.iter())
+                    .map(|(normals, noise)| with_effect(normals, noise, j, delta))
+                    .collect();
+                let held = with_effect(self.held, &nh[0], j, delta);
+                let mut models = fit.iter().zip(covariances);
+                let estimated = models.next().expect("the estimated model");
+                let cx = Context::new(estimated, models, &held, self.groups);
                 choose(&cx, self.alpha).1.is_some_and(|c| {
                     c.groups
                         .iter()
@@ -154,7 +179,8 @@ impl Survey<'_> {
 
     /// The smallest size of `effect` named in [`POWER`] of the draws, from `start`.
     fn size(&self, effect: Effect, start: f64) -> Option<f64> {
-        let covariances = Covariances::default();
+        let covariances: Vec<Covariances> =
+            self.fit.iter().map(|_| Covariances::default()).collect();
         let share = |d: f64| self.named_share(effect, d, &covariances);
         let (mut lo, mut hi) = (start, start);
         if share(start) >= POWER {
@@ -195,11 +221,12 @@ impl Survey<'_> {
 /// [`POWER`], in the unit of its name; `None` for an effect without signature on either half,
 /// in no group, or not named at any size tried (another effect always explains it better).
 /// `fit` and `held` are the normals of the two halves under the navigation model used,
-/// `groups` the observability groups on the fit half; `seed` seeds the draws.
+/// `others` the fit half's under the other models the selection tests over, `groups` the
+/// observability groups on the fit half; `seed` seeds the draws.
 pub fn detectable(
     effects: &[Effect],
-    fit: &Normals,
-    held: &Normals,
+    (fit, held): (&Normals, &Normals),
+    others: &[Normals],
     groups: &[Group],
     alpha: f64,
     seed: u64,
@@ -209,13 +236,14 @@ pub fn detectable(
     let z_fit = normal_isf(alpha / (2.0 * candidates as f64));
     let z_held = normal_isf(alpha);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let models: Vec<&Normals> = std::iter::once(fit).chain(others).collect();
     let survey = Survey {
-        fit,
+        fit_noise: noise_scores(&models, &mut rng),
+        held_noise: noise_scores(&[held], &mut rng),
+        fit: models,
         held,
         groups,
         alpha,
-        fit_noise: noise_scores(fit, &mut rng),
-        held_noise: noise_scores(held, &mut rng),
     };
     effects
         .par_iter()
@@ -246,16 +274,30 @@ mod tests {
         d: f64,
     }
 
-    /// [`Halves`] of `set` split by `sp`, for `effect`.
-    fn detectable_of(set: &ObservationSet, sp: &Split, effect: Effect, seed: u64) -> Halves {
+    /// [`Halves`] of `set` split by `sp`, for `effect`; `others` the fit half's normals under
+    /// the other navigation models the tests take their largest p-value over.
+    fn detectable_of(
+        set: &ObservationSet,
+        sp: &Split,
+        others: &[Normals],
+        effect: Effect,
+        seed: u64,
+    ) -> Halves {
         let (fit, held) = (
             Normals::of(set, &sp.fit).unwrap(),
             Normals::of(set, &sp.held_out).unwrap(),
         );
         let groups = observability_of(&fit, &Effect::ALL).groups;
-        let d = detectable(&[effect], &fit, &held, &groups, DEFAULT_ALPHA, seed)[0]
-            .1
-            .expect("every effect has a signature on the synthetic references");
+        let d = detectable(
+            &[effect],
+            (&fit, &held),
+            others,
+            &groups,
+            DEFAULT_ALPHA,
+            seed,
+        )[0]
+        .1
+        .expect("every effect has a signature on the synthetic references");
         Halves {
             fit,
             held,
@@ -292,7 +334,7 @@ mod tests {
                 held,
                 groups,
                 d,
-            } = detectable_of(&set, &sp, effect, seed);
+            } = detectable_of(&set, &sp, &[], effect, seed);
             let g = groups.len();
             let m = (g + g * (g - 1) / 2) as f64;
             let z = (
@@ -306,7 +348,7 @@ mod tests {
                 ..Default::default()
             };
             fill_residuals(&mut set, &truth, seed + 1000);
-            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0).unwrap();
+            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, &[]).unwrap();
             named += usize::from(names(&sel, &groups, effect));
         }
         let share = named as f64 / seeds as f64;
@@ -317,12 +359,15 @@ mod tests {
     }
 
     /// With the navigation model learned from each set (correlation times 40 / 20 s drawn,
-    /// SMRMSG sigmas stated 1.5x the truth, REML from 60 / 30 s and scale 1): the survey without
-    /// effect gives `detectable`, and the same survey with the effect of that size and fresh
-    /// noise, its model learned again, names it in about 90% of seeds.
+    /// SMRMSG sigmas stated 1.5x the truth, REML from 60 / 30 s and scale 1) and the tests
+    /// over its profile interval, as the diagnosis runs them: the survey without effect gives
+    /// `detectable`, and the same survey with the effect of that size and fresh noise, its
+    /// model learned again, names it in about 90% of seeds.
     #[test]
     fn detectable_holds_with_the_navigation_model_learned() {
-        use crate::app::diagnose::nuisance::{apply, chi2_variance, estimate, Held};
+        use crate::app::diagnose::nuisance::{
+            apply, chi2_variance, estimate, interval_ends, normals_under, Held,
+        };
         let effects = [
             Effect::AttitudeLatency,
             Effect::BoresightX,
@@ -336,7 +381,12 @@ mod tests {
         };
         let learned = |set: &ObservationSet, sp: &Split| {
             let n = estimate(set, &sp.fit, &Held::default(), [60.0, 30.0]).unwrap();
-            (apply(set.clone(), &n), n)
+            let mut raw = set.clone();
+            let others: Vec<Normals> = interval_ends(&n)
+                .iter()
+                .map(|end| normals_under(&mut raw, end, &sp.fit).unwrap())
+                .collect();
+            (apply(raw, &n), n, others)
         };
         let seeds = 60;
         let mut named = 0;
@@ -344,17 +394,17 @@ mod tests {
             let effect = effects[seed as usize % effects.len()];
             let base = draw(&scenario, 500 + seed);
             let sp = split(&base, seed).unwrap();
-            let (set, _) = learned(&base, &sp);
-            let Halves { groups, d, .. } = detectable_of(&set, &sp, effect, seed);
+            let (set, _, others) = learned(&base, &sp);
+            let Halves { groups, d, .. } = detectable_of(&set, &sp, &others, effect, seed);
             let mut with = base.clone();
             let truth = Scenario {
                 truth: vec![(effect, d)],
                 ..scenario.clone()
             };
             fill_residuals(&mut with, &truth, seed + 1000);
-            let (set, n) = learned(&with, &sp);
+            let (set, n, others) = learned(&with, &sp);
             let var = chi2_variance(&with, &sp.held_out, &n);
-            let sel = select(&set, &sp, DEFAULT_ALPHA, var).unwrap();
+            let sel = select(&set, &sp, DEFAULT_ALPHA, var, &others).unwrap();
             named += usize::from(names(&sel, &groups, effect));
         }
         println!("named at detectable: {named}/{seeds}");

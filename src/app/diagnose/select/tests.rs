@@ -33,7 +33,7 @@ fn no_effect_gives_none_and_chi2_per_dof_near_one() {
     for seed in 0..seeds {
         let set = draw(&Scenario::default(), seed);
         let sp = split(&set, seed).unwrap();
-        let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0).unwrap();
+        let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, &[]).unwrap();
         none += usize::from(sel.verdict == Verdict::None);
         chi2.push(gap(&set, &sp.held_out, None).unwrap().chi2_per_dof);
     }
@@ -58,7 +58,7 @@ fn one_injected_effect_is_named_first_with_honest_sigma() {
             ..Default::default()
         };
         fill_residuals(&mut set, &s, seed + 1000);
-        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA, 0.0).unwrap();
+        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA, 0.0, &[]).unwrap();
         let first_group = sel
             .observability
             .groups
@@ -96,7 +96,7 @@ fn an_effect_without_signature_is_unobservable_and_never_named() {
     for o in &mut set.observations {
         o.signature = [0.0; N_EFFECTS];
     }
-    let sel = select(&set, &split(&set, 8).unwrap(), DEFAULT_ALPHA, 0.0).unwrap();
+    let sel = select(&set, &split(&set, 8).unwrap(), DEFAULT_ALPHA, 0.0, &[]).unwrap();
     assert_eq!(sel.observability.unobservable, Effect::ALL.to_vec());
     assert!(sel.observability.groups.is_empty() && sel.candidates.is_empty());
     assert_eq!(sel.verdict, Verdict::Unexplained);
@@ -204,7 +204,7 @@ fn correlated_effects_form_one_group_named_together() {
             },
             seed + 50,
         );
-        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA, 0.0).unwrap();
+        let sel = select(&set, &split(&set, seed).unwrap(), DEFAULT_ALPHA, 0.0, &[]).unwrap();
         if sel.verdict == Verdict::Effect && sel.effects[..2] == [pair.0, pair.1] {
             named += 1;
             assert_eq!(sel.estimate.len(), sel.effects.len());
@@ -227,7 +227,7 @@ fn out_of_model_signal_is_unexplained_located_and_closed_model_free() {
             seed as u64,
         );
         let sp = split(&set, seed as u64).unwrap();
-        let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0).unwrap();
+        let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, &[]).unwrap();
         unexplained += usize::from(sel.verdict == Verdict::Unexplained && sel.effects.is_empty());
         let tests = locate(&set, &sp.fit, None, DEFAULT_BINS).unwrap();
         located += usize::from(tests[0].covariate == Covariate::RangeM);
@@ -259,7 +259,7 @@ fn held_out_ties_are_broken_by_the_fit_references() {
     let held = Normals::of(&set, &sp.held_out).unwrap();
     let groups = observability_of(&fit_n, &Effect::ALL).groups;
     let covariances = Covariances::default();
-    let cx = Context::new(&fit_n, &held, &groups, &covariances);
+    let cx = Context::new((&fit_n, &covariances), [], &held, &groups);
     let (a, b) = (Effect::AttitudeLatency, Effect::ClockDrift);
     let (size_a, size_b) = (size_for(&set, a, 0.005), size_for(&set, b, 0.005));
     let candidate = |effect: Effect, size: f64, fit_chi2: f64, reduction: f64| Candidate {
