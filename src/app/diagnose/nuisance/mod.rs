@@ -310,7 +310,7 @@ pub fn normals_under(
     let saved = (
         set.nav_tau_s,
         set.nav_white_share,
-        set.nav_slow.clone(),
+        set.nav_slow,
         set.visits.iter().map(|v| v.nav_cov).collect::<Vec<_>>(),
     );
     set_model(set, nuisance);
