@@ -237,12 +237,12 @@ impl<'a> Context<'a> {
 
     /// The likelihood-ratio p-value of `larger` against the nested `smaller` on the fit
     /// references: the largest of `p` (the estimated model's) and the other models' (1 where
-    /// they cannot separate the effects).
+    /// they cannot separate the effects or give no finite statistic).
     fn p_over_models(&self, p: f64, larger: &[Effect], smaller: &[Effect]) -> f64 {
         let dof = larger.len() - smaller.len();
         self.others.iter().fold(p, |worst, m| {
             let q = match (m.chi2_of(smaller), m.chi2_of(larger)) {
-                (Some(s), Some(l)) => chi2_sf(s - l, dof),
+                (Some(s), Some(l)) if (s - l).is_finite() => chi2_sf(s - l, dof),
                 _ => 1.0,
             };
             worst.max(q)
