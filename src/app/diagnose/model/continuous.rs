@@ -170,45 +170,59 @@ impl Process {
     }
 }
 
+/// Diffusion of both processes of `process` per navigation component, relative to the
+/// navigation variance (1/s): `2 a^2 / tau`, plus `2 share / tau2` of the slow process.
+fn diffusion_per_s(process: &Process) -> [f64; 6] {
+    std::array::from_fn(|k| {
+        let b = k / 3;
+        let a2 = process.scale[b] * process.scale[b];
+        let mut diffusion = 2.0 * a2 / process.tau[b];
+        if let Some(slow) = &process.slow {
+            diffusion += 2.0 * slow.share[b] / slow.tau_s[b];
+        }
+        diffusion
+    })
+}
+
+/// A return's bridge factors (m / sqrt(s)) per navigation component: its gradient times the
+/// square root of the diffusion (`diffusion_per_s`) times its visit's navigation variance.
+fn bridge_factors(o: &Observation, nav_var: &[[f64; 6]; 6], diffusion: &[f64; 6]) -> [f64; 6] {
+    std::array::from_fn(|k| o.nav_gradient[k] * (diffusion[k] * nav_var[k][k].max(0.0)).sqrt())
+}
+
+/// The bridge's share of the knot interval that two returns (at weights `w1`, `w2` of the
+/// right knot) have in common (s): `knot_s min(w) (1 - max(w))`, zero beyond the right knot (a
+/// group's extrapolation, at most a record interval).
+fn bridge_shape_s(w1: f64, w2: f64, knot_s: f64) -> f64 {
+    (w1.min(w2) * (1.0 - w1.max(w2))).max(0.0) * knot_s
+}
+
 /// Covariance (m^2) of the Brownian bridges between the knots (`knot_s` apart) of two returns
 /// on the same knot interval (at weights `w1`, `w2` of the right knot) along their gradients,
 /// of both processes of `process`, the navigation variances `nav_var1`, `nav_var2` of their
 /// visits: `q knot_s min(w) (1 - max(w))` per component, `q` the diffusion; with `w1 = w2`
-/// and one return, its variance. Zero beyond the right knot (a group's extrapolation, at most
-/// a record interval).
+/// and one return, its variance.
 fn bridge_cov_m2(
     (o1, nav_var1, w1): (&Observation, &[[f64; 6]; 6], f64),
     (o2, nav_var2, w2): (&Observation, &[[f64; 6]; 6], f64),
     process: &Process,
     knot_s: f64,
 ) -> f64 {
-    let shape = (w1.min(w2) * (1.0 - w1.max(w2))).max(0.0) * knot_s;
+    let shape = bridge_shape_s(w1, w2, knot_s);
     if shape == 0.0 {
         return 0.0;
     }
-    (0..6)
-        .map(|k| {
-            let b = k / 3;
-            let a2 = process.scale[b] * process.scale[b];
-            let mut diffusion = 2.0 * a2 / process.tau[b];
-            if let Some(slow) = &process.slow {
-                diffusion += 2.0 * slow.share[b] / slow.tau_s[b];
-            }
-            let var = (nav_var1[k][k].max(0.0) * nav_var2[k][k].max(0.0)).sqrt();
-            o1.nav_gradient[k] * o2.nav_gradient[k] * diffusion * var * shape
-        })
-        .sum()
+    let diffusion = diffusion_per_s(process);
+    let (u1, u2) = (
+        bridge_factors(o1, nav_var1, &diffusion),
+        bridge_factors(o2, nav_var2, &diffusion),
+    );
+    shape * dot6(&u1, &u2)
 }
 
-/// Variance (m^2) of the Brownian bridge between a return's two knots along its gradient.
-fn bridge_var_m2(
-    o: &Observation,
-    nav_var: &[[f64; 6]; 6],
-    w: f64,
-    process: &Process,
-    knot_s: f64,
-) -> f64 {
-    bridge_cov_m2((o, nav_var, w), (o, nav_var, w), process, knot_s)
+/// `a . b` of two six-vectors.
+fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// The prior of the knot values: the precision `Q` (diagonal blocks and the blocks coupling
@@ -321,9 +335,10 @@ struct Sums {
 /// times and scales (position, attitude) and the white navigation variance per component.
 struct Noise<'a> {
     set: &'a ObservationSet,
-    process: Process,
     knot_s: f64,
     white_var: [f64; 6],
+    /// `diffusion_per_s` of the process.
+    diffusion: [f64; 6],
 }
 
 impl KnotSums {
@@ -341,9 +356,9 @@ impl KnotSums {
     ) -> Self {
         let noise = Noise {
             set,
-            process: *process,
             knot_s: layout.knot_s,
             white_var: set.white_nav_var(white),
+            diffusion: diffusion_per_s(process),
         };
         let bounds = piece_bounds(&layout.rows);
         let mut sums = Sums::zeros(0, layout.idx.len(), p);
@@ -462,10 +477,11 @@ impl Sums {
         let first = rows.iter().map(|r| r.knot).min().unwrap_or(0);
         let knots = rows.iter().map(|r| r.knot + 2 - first).max().unwrap_or(0);
         let mut sums = Sums::zeros(first, knots, p);
-        let mut entries = Vec::new();
+        let mut scratch = Scratch::default();
         for group in rows.chunk_by(|a, b| a.group.is_some() && a.group == b.group) {
-            sums.add_group(group, row, noise, &mut entries);
+            sums.add_group(group, row, noise, &mut scratch);
         }
+        sums.x_d_x.fill_lower_triangle_with_upper_triangle();
         sums
     }
 
@@ -487,99 +503,57 @@ impl Sums {
     /// Adds returns that share their white navigation noise (or one return): their
     /// covariance `D_g` (scanner, bridge, white navigation noise) is factorised, `D_g = L L^T`,
     /// and the rows `L^-1 [X H]` added as independent rows of unit variance.
-    fn add_group(
-        &mut self,
-        group: &[Row],
-        row: &RowFn,
-        noise: &Noise,
-        entries: &mut Vec<(usize, f64)>,
-    ) {
-        let white_var = &noise.white_var;
-        let var = |r: &Row| {
-            let nav_var = &noise.set.visits[r.o.visit].nav_cov;
-            r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &noise.process, noise.knot_s)
-        };
-        let h_of = |r: &Row| {
-            let g = SMatrix::<f64, 6, 1>::from_column_slice(&r.o.nav_gradient);
-            (g * (1.0 - r.w), g * r.w)
-        };
+    fn add_group(&mut self, group: &[Row], row: &RowFn, noise: &Noise, s: &mut Scratch) {
         let knot = group[0].knot - self.first_knot;
-        entries.clear();
-        if let [r] = group {
-            // One return: `L` is its standard deviation.
-            let d = var(r) + white_nav_cov_m2(r.o, r.o, white_var);
-            self.log_det_d += d.ln();
-            let s = d.sqrt().recip();
-            row(r.o, entries);
-            entries.iter_mut().for_each(|e| e.1 *= s);
-            let (hl, hr) = h_of(r);
-            self.add_unit_row(knot, &(hl * s), &(hr * s), entries);
-            return;
-        }
         let m = group.len();
-        let mut member_entries = Vec::with_capacity(m);
-        for r in group {
-            entries.clear();
-            row(r.o, entries);
-            member_entries.push(entries.clone());
-        }
-        let mut cols: Vec<usize> = member_entries.iter().flatten().map(|e| e.0).collect();
-        cols.sort_unstable();
-        cols.dedup();
-        let mut x = DMatrix::<f64>::zeros(m, cols.len());
-        let mut h = DMatrix::<f64>::zeros(m, 12);
-        let mut d = DMatrix::<f64>::zeros(m, m);
+        s.design(group, row);
+        let nc = s.cols.len();
+        // `[X H]` row by row (`w` = nc + 12 wide), and the lower triangle of `D_g`.
+        let w = nc + 12;
+        s.y.clear();
+        s.y.resize(m * w, 0.0);
+        s.d.clear();
+        s.d.resize(m * m, 0.0);
+        s.u.clear();
         for (a, r) in group.iter().enumerate() {
-            for &(c, v) in &member_entries[a] {
-                x[(a, cols.binary_search(&c).expect("listed"))] += v;
+            let ya = &mut s.y[a * w..(a + 1) * w];
+            for (i, &(_, v)) in s.entries[s.starts[a]..s.starts[a + 1]].iter().enumerate() {
+                ya[s.slot[s.starts[a] + i]] = v;
             }
-            let (hl, hr) = h_of(r);
-            h.view_mut((a, 0), (1, 6)).copy_from(&hl.transpose());
-            h.view_mut((a, 6), (1, 6)).copy_from(&hr.transpose());
-            d[(a, a)] = var(r);
+            for k in 0..6 {
+                ya[nc + k] = r.o.nav_gradient[k] * (1.0 - r.w);
+                ya[nc + 6 + k] = r.o.nav_gradient[k] * r.w;
+            }
+            let nav_var = &noise.set.visits[r.o.visit].nav_cov;
+            s.u.push(bridge_factors(r.o, nav_var, &noise.diffusion));
             for (b, q) in group[..=a].iter().enumerate() {
-                // The bridge of one return is in `var`; two returns between the same records
-                // share theirs (the same knot interval, a few ms apart).
-                let mut c = white_nav_cov_m2(r.o, q.o, white_var);
-                if b != a {
-                    let nav_var = |r: &Row| &noise.set.visits[r.o.visit].nav_cov;
-                    c += bridge_cov_m2(
-                        (r.o, nav_var(r), r.w),
-                        (q.o, nav_var(q), q.w),
-                        &noise.process,
-                        noise.knot_s,
-                    );
-                }
-                d[(a, b)] += c;
-                if b != a {
-                    d[(b, a)] += c;
-                }
+                // Two returns between the same records share their bridge (the same knot
+                // interval, a few ms apart) and their white navigation noise.
+                let bridge = bridge_shape_s(r.w, q.w, noise.knot_s) * dot6(&s.u[a], &s.u[b]);
+                let scanner = if a == b { r.o.var_white_m2 } else { 0.0 };
+                s.d[a * m + b] = scanner + bridge + white_nav_cov_m2(r.o, q.o, &noise.white_var);
             }
         }
-        let l = d
-            .cholesky()
-            .expect("scanner variance plus a covariance is positive definite")
-            .l();
-        self.log_det_d += 2.0 * l.diagonal().iter().map(|v| v.ln()).sum::<f64>();
-        let x = l.solve_lower_triangular(&x).expect("invertible factor");
-        let h = l.solve_lower_triangular(&h).expect("invertible factor");
+        self.log_det_d += cholesky_in_place(&mut s.d, m);
+        forward_substitute(&s.d, m, &mut s.y, w);
         for a in 0..m {
-            entries.clear();
-            entries.extend(cols.iter().enumerate().map(|(i, &c)| (c, x[(a, i)])));
-            let hl = SMatrix::<f64, 6, 1>::from_fn(|k, _| h[(a, k)]);
-            let hr = SMatrix::<f64, 6, 1>::from_fn(|k, _| h[(a, 6 + k)]);
-            self.add_unit_row(knot, &hl, &hr, entries);
+            let ya = &s.y[a * w..(a + 1) * w];
+            let hl = SMatrix::<f64, 6, 1>::from_column_slice(&ya[nc..nc + 6]);
+            let hr = SMatrix::<f64, 6, 1>::from_column_slice(&ya[nc + 6..]);
+            self.add_unit_row(knot, &hl, &hr, &s.cols, &ya[..nc]);
         }
     }
 
-    /// Adds a row of unit variance: `x` (sparse columns), navigation rows `hl`, `hr` on knots
-    /// `knot`, `knot + 1` (counted from `first_knot`).
+    /// Adds a row of unit variance: `x` (values of columns `cols`), navigation rows `hl`,
+    /// `hr` on knots `knot`, `knot + 1` (counted from `first_knot`). `X^T D^-1 X` gains its
+    /// upper triangle only ([`Sums::over`] fills the lower).
     fn add_unit_row(
         &mut self,
         knot: usize,
         hl: &SMatrix<f64, 6, 1>,
         hr: &SMatrix<f64, 6, 1>,
-        x: &[(usize, f64)],
+        cols: &[usize],
+        x: &[f64],
     ) {
         self.h_d_h_diag[knot] += hl * hl.transpose();
         self.h_d_h_diag[knot + 1] += hr * hr.transpose();
@@ -587,9 +561,11 @@ impl Sums {
         // Column-major storage: entry (i, j) of a matrix with `n` rows is element `j n + i`.
         let (p, n_b) = (self.x_d_x.nrows(), self.h_d_x.nrows());
         let (x_d_x, h_d_x) = (self.x_d_x.as_mut_slice(), self.h_d_x.as_mut_slice());
-        for &(ca, xa) in x {
-            for &(cb, xb) in x {
-                x_d_x[ca * p + cb] += xa * xb;
+        for (&ca, &xa) in cols.iter().zip(x) {
+            for (&cb, &xb) in cols.iter().zip(x) {
+                if cb <= ca {
+                    x_d_x[ca * p + cb] += xa * xb;
+                }
             }
             // Rows 6 knot .. 6 knot + 12 of column `ca`: the two knots' six components.
             let b = &mut h_d_x[ca * n_b + 6 * knot..ca * n_b + 6 * knot + 12];
@@ -598,6 +574,98 @@ impl Sums {
                 b[6 + k] += hr[k] * xa;
             }
         }
+    }
+}
+
+/// Buffers of [`Sums::add_group`], kept from group to group.
+#[derive(Default)]
+struct Scratch {
+    /// The members' design rows one after the other, member `a`'s from `starts[a]`.
+    entries: Vec<(usize, f64)>,
+    starts: Vec<usize>,
+    /// The columns of the group's design, and each entry's place among them.
+    cols: Vec<usize>,
+    slot: Vec<usize>,
+    /// `[X H]` (row-major), the lower triangle of `D_g` (row-major), the bridge factors.
+    y: Vec<f64>,
+    d: Vec<f64>,
+    u: Vec<[f64; 6]>,
+}
+
+impl Scratch {
+    /// The design rows of `group`'s members and their columns: the first member's, when every
+    /// member has the same (the catalogue's rows do), else their sorted union.
+    fn design(&mut self, group: &[Row], row: &RowFn) {
+        self.entries.clear();
+        self.starts.clear();
+        for r in group {
+            self.starts.push(self.entries.len());
+            row(r.o, &mut self.entries);
+        }
+        self.starts.push(self.entries.len());
+        let first = &self.entries[..self.starts[1]];
+        let same = self.starts.windows(2).all(|w| {
+            let e = &self.entries[w[0]..w[1]];
+            e.len() == first.len() && e.iter().zip(first).all(|(a, b)| a.0 == b.0)
+        });
+        self.cols.clear();
+        self.slot.clear();
+        if same {
+            self.cols.extend(first.iter().map(|e| e.0));
+            let n = first.len();
+            self.slot
+                .extend((0..self.entries.len()).map(|i| i % n.max(1)));
+        } else {
+            self.cols.extend(self.entries.iter().map(|e| e.0));
+            self.cols.sort_unstable();
+            self.cols.dedup();
+            let cols = &self.cols;
+            self.slot.extend(
+                self.entries
+                    .iter()
+                    .map(|e| cols.binary_search(&e.0).expect("listed")),
+            );
+        }
+    }
+}
+
+/// Factorises the symmetric positive definite `m x m` matrix whose lower triangle `d` holds
+/// (row-major) as `L L^T`, `L` in its place; returns `ln det`.
+fn cholesky_in_place(d: &mut [f64], m: usize) -> f64 {
+    let mut log_det = 0.0;
+    for a in 0..m {
+        for b in 0..=a {
+            let dot: f64 = (0..b).map(|k| d[a * m + k] * d[b * m + k]).sum();
+            let v = d[a * m + b] - dot;
+            if a == b {
+                assert!(
+                    v > 0.0,
+                    "scanner variance plus a covariance is positive definite"
+                );
+                d[a * m + a] = v.sqrt();
+                log_det += v.ln();
+            } else {
+                d[a * m + b] = v / d[b * m + b];
+            }
+        }
+    }
+    log_det
+}
+
+/// `Y <- L^-1 Y` for the lower triangular `m x m` `l` (row-major) and `Y` of `m` rows of
+/// `w` (row-major).
+fn forward_substitute(l: &[f64], m: usize, y: &mut [f64], w: usize) {
+    for a in 0..m {
+        let (done, rest) = y.split_at_mut(a * w);
+        let ya = &mut rest[..w];
+        for b in 0..a {
+            let lab = l[a * m + b];
+            for (v, yb) in ya.iter_mut().zip(&done[b * w..(b + 1) * w]) {
+                *v -= lab * yb;
+            }
+        }
+        let inv = l[a * m + a].recip();
+        ya.iter_mut().for_each(|v| *v *= inv);
     }
 }
 
@@ -785,7 +853,8 @@ mod tests {
                 x[(i, col)] = v;
             }
             let nav_var = &set.visits[r.o.visit].nav_cov;
-            c[(i, i)] = r.o.var_white_m2 + bridge_var_m2(r.o, nav_var, r.w, &process, knot_s);
+            let own = (r.o, nav_var, r.w);
+            c[(i, i)] = r.o.var_white_m2 + bridge_cov_m2(own, own, &process, knot_s);
             let white_var = set.white_nav_var(set.nav_white_share);
             for (j, q) in rows.iter().enumerate() {
                 c[(i, j)] += white_nav_cov_m2(r.o, q.o, &white_var);
