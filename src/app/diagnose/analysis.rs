@@ -4,10 +4,10 @@
 //! "Statistics").
 
 use super::locate::{locate, located_in, model_free, Correction, CovariateTest};
-use super::model::fit::{split, Normals, Split};
+use super::model::fit::{split, Split};
 use super::model::metrics::{gap, Gap};
 use super::model::{Covariate, ObservationSet};
-use super::select::{select, Selection, Verdict};
+use super::select::{select, OtherModel, Selection, Verdict};
 use crate::Result;
 
 /// Settings of [`analyse`].
@@ -63,7 +63,11 @@ pub struct Analysis {
 /// Runs the statistics on `set`; `others` are the fit references' normals under the other
 /// navigation models the selection's tests take their largest p-value over
 /// ([`select`]).
-pub fn analyse(set: &ObservationSet, settings: &Settings, others: &[Normals]) -> Result<Analysis> {
+pub fn analyse(
+    set: &ObservationSet,
+    settings: &Settings,
+    others: &[OtherModel],
+) -> Result<Analysis> {
     let split = split(set, settings.seed)?;
     let before = gap(set, &split.held_out, None)?;
     let selection = select(

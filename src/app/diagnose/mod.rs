@@ -106,8 +106,9 @@ struct Learned {
     screening: nuisance::screen::Screening,
     nuisance: nuisance::Nuisance,
     /// The fit references' normals under the models at the ends of the attitude correlation
-    /// time's profile interval (`nuisance::interval_ends`).
-    others: Vec<model::fit::Normals>,
+    /// time's profile interval (`nuisance::interval_ends`) and the slow process's model the
+    /// survey cannot reject (`nuisance::slow_alternative`).
+    others: Vec<select::OtherModel>,
     /// What the model's sampling error adds to the variance of the held-out `r^T C^-1 r`.
     held_out_chi2_var: f64,
 }
@@ -138,9 +139,17 @@ impl Learned {
             .unwrap_or(crate::pipeline::config::START_NAV_TAU_S);
         let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
         let held_out_chi2_var = nuisance::chi2_variance(&screened, &split.held_out, &nuisance);
-        let others = nuisance::interval_ends(&nuisance)
-            .iter()
-            .map(|end| nuisance::normals_under(&mut screened, end, &split.fit))
+        let alternatives = nuisance::interval_ends(&nuisance)
+            .into_iter()
+            .map(|end| (end, false))
+            .chain(nuisance::slow_alternative(&nuisance).map(|n| (n, true)));
+        let others = alternatives
+            .map(|(n, widens_sigma)| {
+                Ok(select::OtherModel {
+                    normals: nuisance::normals_under(&mut screened, &n, &split.fit)?,
+                    widens_sigma,
+                })
+            })
             .collect::<Result<_>>()?;
         let applied = nuisance::apply(screened, &nuisance);
         Ok((

@@ -239,6 +239,25 @@ pub struct Fit {
     pub dof: usize,
 }
 
+impl Fit {
+    /// Each sigma the larger of its own and `other`'s, the covariance scaled with it (its
+    /// correlations kept).
+    pub fn widen_sigma(&mut self, other: &[f64]) {
+        let factor: Vec<f64> = self
+            .sigma
+            .iter()
+            .zip(other)
+            .map(|(s, o)| if o > s { o / s } else { 1.0 })
+            .collect();
+        for (i, fi) in factor.iter().enumerate() {
+            self.sigma[i] *= fi;
+            for (j, fj) in factor.iter().enumerate() {
+                self.cov[(i, j)] *= fi * fj;
+            }
+        }
+    }
+}
+
 impl Normals {
     /// The catalogue's statistics on the returns of `refs`.
     pub fn of(set: &ObservationSet, refs: &[usize]) -> Result<Normals> {

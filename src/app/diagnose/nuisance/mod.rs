@@ -188,6 +188,15 @@ pub struct SlowProcess {
     pub position_tau_s: Parameter,
     /// Correlation time of the slow attitude process (s).
     pub attitude_tau_s: Parameter,
+    /// Not used, but with a likelihood above the model without it (`lr_statistic` > 0): the
+    /// model with it is one the survey cannot reject, so the selection's tests take their
+    /// largest p-value under it too and each estimate's sigma is the larger of the two models'
+    /// ([`slow_alternative`]; docs/diagnosis.md, "Two time scales").
+    pub in_tests: bool,
+    /// The first process's parameters (correlation times, scales, white shares) estimated
+    /// beside it.
+    #[serde(skip)]
+    pub first_beside: [f64; 6],
 }
 
 /// The 95% profile interval of a correlation time (`diagnosis.json`
@@ -338,6 +347,32 @@ pub fn interval_ends(nuisance: &Nuisance) -> Vec<Nuisance> {
             n
         })
         .collect()
+}
+
+/// The model with the slow process that `nuisance` searched and did not use, where the survey
+/// cannot reject it ([`SlowProcess::in_tests`]): its own first process and the slow process
+/// used.
+pub fn slow_alternative(nuisance: &Nuisance) -> Option<Nuisance> {
+    let slow = nuisance.slow.as_ref().filter(|s| s.in_tests)?;
+    let mut n = nuisance.clone();
+    let first = slow.first_beside;
+    for (p, v) in [
+        &mut n.position_tau_s,
+        &mut n.attitude_tau_s,
+        &mut n.position_scale,
+        &mut n.attitude_scale,
+        &mut n.position_white_share,
+        &mut n.attitude_white_share,
+    ]
+    .into_iter()
+    .zip(first)
+    {
+        p.value = v;
+    }
+    if let Some(s) = n.slow.as_mut() {
+        s.used = true;
+    }
+    Some(n)
 }
 
 /// Sets the navigation model of `nuisance` on `set` ([`apply`]).
@@ -575,6 +610,7 @@ pub fn estimate(
     let configured_off = shares_configured.iter().all(|v| *v == Some(0.0));
     let try_slow = configured_on || (!configured_off && span_s(set, &selected) >= SLOW_MIN_SPAN_S);
     let mut slow_lr = None;
+    let mut first_beside = None;
     if try_slow {
         let one = (x, best);
         reml.slow = true;
@@ -593,6 +629,7 @@ pub fn estimate(
             (x, best) = one;
             x[6..].copy_from_slice(&slow_part[6..]);
             reml.resum(&x);
+            first_beside = (lr > 0.0).then(|| std::array::from_fn(|i| slow_part[i]));
         }
         slow_lr = Some(lr);
     }
@@ -632,6 +669,8 @@ pub fn estimate(
             attitude_share: param(7),
             position_tau_s: param(8),
             attitude_tau_s: param(9),
+            in_tests: first_beside.is_some(),
+            first_beside: first_beside.unwrap_or([0.0; 6]),
         }),
         sigma_kind,
         log_covariance,

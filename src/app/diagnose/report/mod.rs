@@ -285,6 +285,13 @@ impl Diagnosis {
                 p(&slow.position_tau_s, " s"),
                 p(&slow.attitude_tau_s, " s")
             );
+            if slow.in_tests {
+                let _ = writeln!(
+                    s,
+                    "The survey cannot reject it either: the tests take their largest p-value                      under it too, and each estimate's sigma is the larger of the two models'.
+"
+                );
+            }
         }
     }
 

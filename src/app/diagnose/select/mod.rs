@@ -167,12 +167,25 @@ impl Selection {
 /// the residuals with one.
 type Covariances = RefCell<HashMap<Vec<Effect>, Option<DMatrix<f64>>>>;
 
+/// The fit references' normals under a navigation model the survey cannot reject besides the
+/// estimate's: each test on the fit references takes its largest p-value over these and the
+/// estimate's ([`select`]).
+#[derive(Debug, Clone)]
+pub struct OtherModel {
+    /// `X^T C^-1 X` of the fit references under the model.
+    pub normals: Normals,
+    /// Whether each estimate's sigma is the larger of this model's and the estimate's (a
+    /// model of another structure than the estimate's: `nuisance::slow_alternative`).
+    pub widens_sigma: bool,
+}
+
 /// The fit references' normals under one navigation model, and the covariances of the fits
 /// made on them.
 #[derive(Clone, Copy)]
 struct Model<'a> {
     normals: &'a Normals,
     covariances: &'a Covariances,
+    widens_sigma: bool,
 }
 
 impl Model<'_> {
@@ -207,20 +220,27 @@ struct Context<'a> {
 
 impl<'a> Context<'a> {
     /// `fit` and `covariances` under the estimated model; `others` the other models' fit
-    /// normals, each with its own covariances.
+    /// normals, each with its own covariances and whether it widens the sigmas.
     fn new(
         (fit, covariances): (&'a Normals, &'a Covariances),
-        others: impl IntoIterator<Item = (&'a Normals, &'a Covariances)>,
+        others: impl IntoIterator<Item = (&'a Normals, &'a Covariances, bool)>,
         held: &'a Normals,
         groups: &'a [Group],
     ) -> Self {
-        let model = |(normals, covariances)| Model {
-            normals,
-            covariances,
-        };
         Context {
-            fit: model((fit, covariances)),
-            others: others.into_iter().map(model).collect(),
+            fit: Model {
+                normals: fit,
+                covariances,
+                widens_sigma: false,
+            },
+            others: others
+                .into_iter()
+                .map(|(normals, covariances, widens_sigma)| Model {
+                    normals,
+                    covariances,
+                    widens_sigma,
+                })
+                .collect(),
             held,
             groups,
         }
@@ -232,7 +252,18 @@ impl<'a> Context<'a> {
 
     /// The GLS fit of `effects` on the fit references; `None` when inseparable.
     fn fit_of(&self, effects: &[Effect]) -> Option<Fit> {
-        self.fit.fit_of(effects)
+        self.fit.fit_of(effects).map(|f| self.widened(f))
+    }
+
+    /// `fit` with each sigma the largest of its own and those of the same fit under the other
+    /// models that widen it (the covariance scaled to match, its correlations kept).
+    fn widened(&self, mut fit: Fit) -> Fit {
+        for m in self.others.iter().filter(|m| m.widens_sigma) {
+            if let Some(other) = m.fit_of(&fit.effects) {
+                fit.widen_sigma(&other.sigma);
+            }
+        }
+        fit
     }
 
     /// The likelihood-ratio p-value of `larger` against the nested `smaller` on the fit
@@ -414,14 +445,16 @@ fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
 /// tests with `held_out_chi2_var` added to their variance (the learned navigation model's
 /// sampling error, `nuisance::chi2_variance`; 0 with the model known). `others` are the fit
 /// references' normals under the other navigation models the survey cannot reject
-/// (`nuisance::interval_ends`): each test on the fit references takes its largest p-value over
-/// them and the estimate's; estimates, sigmas and the held-out tests are the estimate's.
+/// (`nuisance::interval_ends`, `nuisance::slow_alternative`): each test on the fit references
+/// takes its largest p-value over them and the estimate's; estimates and the held-out tests
+/// are the estimate's, each sigma the largest of the estimate's and those of the models that
+/// widen it.
 pub fn select(
     set: &ObservationSet,
     split: &Split,
     alpha: f64,
     held_out_chi2_var: f64,
-    others: &[Normals],
+    others: &[OtherModel],
 ) -> Result<Selection> {
     let fit_n = Normals::of(set, &split.fit)?;
     let held = Normals::of(set, &split.held_out)?;
@@ -433,7 +466,10 @@ pub fn select(
         others.iter().map(|_| Covariances::default()).collect();
     let cx = Context::new(
         (&fit_n, &covariances),
-        others.iter().zip(&other_covariances),
+        others
+            .iter()
+            .zip(&other_covariances)
+            .map(|(m, c)| (&m.normals, c, m.widens_sigma)),
         &held,
         &observability.groups,
     );
@@ -503,8 +539,8 @@ fn named(cx: &Context, chosen: &Candidate) -> Result<Named> {
                 let mut with = chosen.fit.effects.clone();
                 with[slot] = member;
                 match cx.fit.normals.fit(&with) {
-                    Ok(f) => (f, slot),
-                    Err(_) => (cx.fit.normals.fit(&[member])?, 0),
+                    Ok(f) => (cx.widened(f), slot),
+                    Err(_) => (cx.widened(cx.fit.normals.fit(&[member])?), 0),
                 }
             };
             effects.push(member);

@@ -28,7 +28,7 @@
 //! again) and the sampling error of the navigation model inside its profile interval.
 
 use super::observability::Group;
-use super::{choose, Context, Covariances};
+use super::{choose, Context, Covariances, OtherModel};
 use crate::app::diagnose::model::fit::{sigma_sqrt, Normals};
 use crate::app::diagnose::model::metrics::normal_sf;
 use crate::app::diagnose::model::{signature_index, Effect, N_EFFECTS};
@@ -166,7 +166,9 @@ impl Survey<'_> {
                 let held = with_effect(self.held, &nh[0], j, delta);
                 let mut models = fit.iter().zip(covariances);
                 let estimated = models.next().expect("the estimated model");
-                let cx = Context::new(estimated, models, &held, self.groups);
+                // The sigmas do not enter the naming: no model widens them here.
+                let others = models.map(|(n, c)| (n, c, false));
+                let cx = Context::new(estimated, others, &held, self.groups);
                 choose(&cx, self.alpha).1.is_some_and(|c| {
                     c.groups
                         .iter()
@@ -226,7 +228,7 @@ impl Survey<'_> {
 pub fn detectable(
     effects: &[Effect],
     (fit, held): (&Normals, &Normals),
-    others: &[Normals],
+    others: &[OtherModel],
     groups: &[Group],
     alpha: f64,
     seed: u64,
@@ -236,7 +238,9 @@ pub fn detectable(
     let z_fit = normal_isf(alpha / (2.0 * candidates as f64));
     let z_held = normal_isf(alpha);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let models: Vec<&Normals> = std::iter::once(fit).chain(others).collect();
+    let models: Vec<&Normals> = std::iter::once(fit)
+        .chain(others.iter().map(|m| &m.normals))
+        .collect();
     let survey = Survey {
         fit_noise: noise_scores(&models, &mut rng),
         held_noise: noise_scores(&[held], &mut rng),
@@ -279,7 +283,7 @@ mod tests {
     fn detectable_of(
         set: &ObservationSet,
         sp: &Split,
-        others: &[Normals],
+        others: &[OtherModel],
         effect: Effect,
         seed: u64,
     ) -> Halves {
@@ -382,9 +386,12 @@ mod tests {
         let learned = |set: &ObservationSet, sp: &Split| {
             let n = estimate(set, &sp.fit, &Held::default(), [60.0, 30.0]).unwrap();
             let mut raw = set.clone();
-            let others: Vec<Normals> = interval_ends(&n)
+            let others: Vec<OtherModel> = interval_ends(&n)
                 .iter()
-                .map(|end| normals_under(&mut raw, end, &sp.fit).unwrap())
+                .map(|end| OtherModel {
+                    normals: normals_under(&mut raw, end, &sp.fit).unwrap(),
+                    widens_sigma: false,
+                })
                 .collect();
             (apply(raw, &n), n, others)
         };

@@ -308,3 +308,79 @@ fn held_out_ties_are_broken_by_the_fit_references() {
     assert_eq!(judged(10.0, 0.0, 10.0, 1e-6, 0.5), a);
     assert_eq!(judged(0.5, 0.7, 10.0, 1e-6, 1e-9), a);
 }
+
+/// A slow navigation error that the estimate's model leaves out (drawn: 5 s and 600 / 300 s
+/// processes, half the variance each; the set declares the 5 s process alone at the whole
+/// variance), and a mounting angle whose signature is the navigation's roll gradient: its
+/// estimate carries the slow error's mean over the span, which
+/// the estimate's sigma does not hold. With the model that has the slow process among the
+/// others, widening the sigmas, the normalised errors have sd near 1; the estimates are the
+/// same.
+#[test]
+fn a_slow_process_the_model_leaves_out_widens_the_sigmas() {
+    use crate::app::diagnose::model::SlowNav;
+    let scenario = Scenario {
+        references: 80,
+        passes: 4,
+        nav_tau_s: Some([5.0, 5.0]),
+        nav_scale: [0.5f64.sqrt(); 2],
+        nav_slow: Some(SlowNav {
+            share: [0.5, 0.5],
+            tau_s: [600.0, 300.0],
+        }),
+        ..Default::default()
+    };
+    let effect = Effect::BoresightX;
+    let (mut alone, mut widened) = (Vec::new(), Vec::new());
+    for seed in 0..40 {
+        let mut set = draw(&scenario, 700 + seed);
+        // The mounting angle moves a return as a roll error of the navigation does (a
+        // constant attitude error is a boresight).
+        for o in &mut set.observations {
+            // m per degree from m per radian.
+            o.signature[signature_index(effect)] = o.nav_gradient[3] * std::f64::consts::PI / 180.0;
+        }
+        let truth = size_for(&set, effect, 0.01);
+        let with = Scenario {
+            truth: vec![(effect, truth)],
+            ..scenario.clone()
+        };
+        fill_residuals(&mut set, &with, 1700 + seed);
+        let sp = split(&set, seed).unwrap();
+        // The drawn process: the fast part at half the declared variance, the slow beside it
+        // (its share relative to the halved variances).
+        let mut slow_set = set.clone();
+        for v in &mut slow_set.visits {
+            v.nav_cov.iter_mut().flatten().for_each(|c| *c *= 0.5);
+        }
+        slow_set.nav_slow = Some(SlowNav {
+            share: [1.0, 1.0],
+            tau_s: [600.0, 300.0],
+        });
+        let slow = OtherModel {
+            normals: Normals::of(&slow_set, &sp.fit).unwrap(),
+            widens_sigma: true,
+        };
+        let z = |others: &[OtherModel]| {
+            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, others).unwrap();
+            let c = sel
+                .candidates
+                .iter()
+                .find(|c| c.fit.effects == [effect])
+                .expect("fitted alone");
+            (
+                c.fit.estimate[0],
+                (c.fit.estimate[0] - truth) / c.fit.sigma[0],
+            )
+        };
+        let (a, w) = (z(&[]), z(std::slice::from_ref(&slow)));
+        assert_eq!(a.0, w.0, "the estimate is the estimate model's");
+        alone.push(a.1);
+        widened.push(w.1);
+    }
+    let (sd_alone, sd_widened) = (mean_std(&alone).1, mean_std(&widened).1);
+    println!("normalised errors' sd: {sd_alone:.2} alone, {sd_widened:.2} widened");
+    // 40 draws: the sd of a unit sample's sd is about 0.11.
+    assert!(sd_alone > 2.0, "{sd_alone}");
+    assert!((0.7..1.35).contains(&sd_widened), "{sd_widened}");
+}
