@@ -148,47 +148,58 @@ struct Survey<'a> {
 }
 
 impl Survey<'_> {
-    /// Share of the draws in which the selection names `effect` at size `delta`
-    /// (`covariances`: one per model of `fit`).
-    fn named_share(&self, effect: Effect, delta: f64, covariances: &[Covariances]) -> f64 {
+    /// Whether the selection names `effect` at size `delta` in at least [`POWER`] of the draws
+    /// (`covariances`: one per model of `fit`). The draws are taken in order and stop as soon
+    /// as the answer is known: the named or the missed ones alone decide it.
+    fn reaches_power(&self, effect: Effect, delta: f64, covariances: &[Covariances]) -> bool {
         let j = signature_index(effect);
-        let named = self
-            .fit_noise
-            .iter()
-            .zip(&self.held_noise)
-            .filter(|(nf, nh)| {
-                let fit: Vec<Normals> = self
-                    .fit
+        let needed = (0..=DRAWS)
+            .find(|&n| n as f64 / DRAWS as f64 >= POWER)
+            .unwrap_or(DRAWS + 1);
+        let (mut named, mut missed) = (0, 0);
+        for (nf, nh) in self.fit_noise.iter().zip(&self.held_noise) {
+            let fit: Vec<Normals> = self
+                .fit
+                .iter()
+                .zip(nf.iter())
+                .map(|(normals, noise)| with_effect(normals, noise, j, delta))
+                .collect();
+            let held = with_effect(self.held, &nh[0], j, delta);
+            let mut models = fit.iter().zip(covariances);
+            let estimated = models.next().expect("the estimated model");
+            // The sigmas do not enter the naming: no model widens them here.
+            let others = models.map(|(n, c)| (n, c, false));
+            let cx = Context::new(estimated, others, &held, self.groups);
+            let names = choose(&cx, self.alpha).1.is_some_and(|c| {
+                c.groups
                     .iter()
-                    .zip(nf.iter())
-                    .map(|(normals, noise)| with_effect(normals, noise, j, delta))
-                    .collect();
-                let held = with_effect(self.held, &nh[0], j, delta);
-                let mut models = fit.iter().zip(covariances);
-                let estimated = models.next().expect("the estimated model");
-                // The sigmas do not enter the naming: no model widens them here.
-                let others = models.map(|(n, c)| (n, c, false));
-                let cx = Context::new(estimated, others, &held, self.groups);
-                choose(&cx, self.alpha).1.is_some_and(|c| {
-                    c.groups
-                        .iter()
-                        .any(|&g| self.groups[g].members.contains(&effect))
-                })
-            })
-            .count();
-        named as f64 / DRAWS as f64
+                    .any(|&g| self.groups[g].members.contains(&effect))
+            });
+            if names {
+                named += 1;
+            } else {
+                missed += 1;
+            }
+            if named >= needed {
+                return true;
+            }
+            if missed > DRAWS - needed {
+                return false;
+            }
+        }
+        false
     }
 
     /// The smallest size of `effect` named in [`POWER`] of the draws, from `start`.
     fn size(&self, effect: Effect, start: f64) -> Option<f64> {
         let covariances: Vec<Covariances> =
             self.fit.iter().map(|_| Covariances::default()).collect();
-        let share = |d: f64| self.named_share(effect, d, &covariances);
+        let reaches = |d: f64| self.reaches_power(effect, d, &covariances);
         let (mut lo, mut hi) = (start, start);
-        if share(start) >= POWER {
+        if reaches(start) {
             for _ in 0..MAX_BRACKETS {
                 lo = hi / BRACKET;
-                if share(lo) < POWER {
+                if !reaches(lo) {
                     break;
                 }
                 hi = lo;
@@ -197,7 +208,7 @@ impl Survey<'_> {
             let mut found = false;
             for _ in 0..MAX_BRACKETS {
                 hi = lo * BRACKET;
-                if share(hi) >= POWER {
+                if reaches(hi) {
                     found = true;
                     break;
                 }
@@ -209,7 +220,7 @@ impl Survey<'_> {
         }
         for _ in 0..BISECTIONS {
             let mid = (lo * hi).sqrt();
-            if share(mid) < POWER {
+            if !reaches(mid) {
                 lo = mid;
             } else {
                 hi = mid;
