@@ -155,7 +155,7 @@ impl Survey<'_> {
         let j = signature_index(effect);
         let needed = (0..=DRAWS)
             .find(|&n| n as f64 / DRAWS as f64 >= POWER)
-            .unwrap_or(DRAWS + 1);
+            .expect("POWER is at most 1");
         let (mut named, mut missed) = (0, 0);
         for (nf, nh) in self.fit_noise.iter().zip(&self.held_noise) {
             let fit: Vec<Normals> = self
