@@ -1,6 +1,7 @@
 //! `kinescan diagnose`: observations on reference patches (the statistics have their own
 //! tests), bad input, and the diagnosis end to end on the simulated city block.
 
+use crate::diagnose_acceptance::{diagnose_dir, simulate_text, with_effects, ACCEPTANCE_SCENARIO};
 use crate::sim_support::run;
 use kinescan::app::diagnose::model::{Effect, ObservationSet};
 use kinescan::app::diagnose::observe::{observe, ObserveCounts, References};
@@ -797,5 +798,41 @@ fn ground_patches_alone_name_no_effect_on_a_survey_without_one() {
         "{}: {}",
         dg.headline(),
         dg.reason
+    );
+}
+
+/// A configuration off by more than `plane_tolerance_m` (0.15 m): a vertical lever arm 0.208 m
+/// off (twice what one lap can detect) lifts every ground square's returns 0.21-0.25 m off its
+/// plane. Cut at the tolerance, 18 of 32 patches had no observation and the verdict was `none`;
+/// the ground squares are found off their plane as a whole, observed about each visit's median
+/// distance from it, and the lever arm is named (docs/diagnosis.md, "Patches off their plane").
+#[test]
+fn a_lever_arm_beyond_the_plane_tolerance_is_named_on_its_displaced_ground() {
+    let truth_m = 0.20836536765887111;
+    let dir = tempfile::tempdir().unwrap();
+    let effects = format!("lever_arm_error_m = [0.0, 0.0, {truth_m}]");
+    let text = with_effects(ACCEPTANCE_SCENARIO, &effects);
+    simulate_text(dir.path(), &text, 1, Some(62.0)).unwrap();
+    let d = diagnose_dir(dir.path()).unwrap();
+    let c = &d.counts;
+    let displaced: Vec<&str> = c.displaced_patches.iter().map(|p| p.id.as_str()).collect();
+    println!("{}; displaced {displaced:?}", d.headline());
+    assert!(c.patches_without_observations.is_empty(), "{c:?}");
+    assert!(displaced.len() >= 10, "{displaced:?}");
+    assert!(
+        displaced.iter().all(|id| id.starts_with("GND")),
+        "{displaced:?}"
+    );
+    assert!(c
+        .displaced_patches
+        .iter()
+        .all(|p| p.off_plane_share > 0.9 && (0.15..0.35).contains(&p.median_offset_m)));
+    assert_eq!(d.verdict, Verdict::Effect, "{}", d.reason);
+    assert_eq!(d.effects, ["lever_arm_z_m"]);
+    let (est, sigma) = (d.estimate["lever_arm_z_m"], d.sigma["lever_arm_z_m"]);
+    // Measured 0.245 +- 0.020 (z +1.8); 3 sigma fails an honest estimate 0.3% of the time.
+    assert!(
+        (est - truth_m).abs() < 3.0 * sigma && sigma < 0.05,
+        "{est} +- {sigma}"
     );
 }

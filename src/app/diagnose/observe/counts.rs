@@ -15,7 +15,8 @@ pub struct ObserveCounts {
     pub rejected: BTreeMap<RejectReason, u64>,
     /// Georeferenced, not inside any patch rectangle (less its edge margin) near its plane.
     pub off_patches: u64,
-    /// Inside a patch rectangle but beyond the plane tolerance (within 1 m of the plane).
+    /// Inside a patch rectangle, within 1 m of its plane but beyond the plane tolerance (of a
+    /// displaced patch: from its visit's median).
     pub off_plane: u64,
     /// On a patch (inside its rectangle, within the plane tolerance).
     pub on_patches: u64,
@@ -29,6 +30,10 @@ pub struct ObserveCounts {
     pub patches_read: usize,
     /// Patch ids without any observation.
     pub patches_without_observations: Vec<String>,
+    /// Patches whose returns lay off their plane as a whole, observed about each visit's
+    /// median distance from it (their returns further than `plane_tolerance_m` from that
+    /// median are in `off_plane`).
+    pub displaced_patches: Vec<super::DisplacedPatch>,
     /// On a control point's target (bright, near the point; taken before the patches).
     pub on_targets: u64,
     /// On a target, in a visit left out (fewer than `target_min_returns`, or not flat).

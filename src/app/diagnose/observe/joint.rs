@@ -51,6 +51,7 @@ impl ObserveCounts {
             observations,
             patches_read: _,
             patches_without_observations: _,
+            displaced_patches,
             on_targets,
             target_returns_unused,
             target_returns_used,
@@ -70,6 +71,9 @@ impl ObserveCounts {
         self.in_short_visits += in_short_visits;
         self.thinned += thinned;
         self.observations += observations;
+        // A patch off its plane in several surveys is listed once per survey.
+        self.displaced_patches
+            .extend(displaced_patches.iter().cloned());
         self.on_targets += on_targets;
         self.target_returns_unused += target_returns_unused;
         self.target_returns_used += target_returns_used;

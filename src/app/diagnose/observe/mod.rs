@@ -2,8 +2,8 @@
 //! rectangle, near its plane) becomes one [`Observation`] with its residual from the plane, its
 //! predicted variance parts and the signatures of the catalogue effects (docs/diagnosis.md).
 //!
-//! Two passes over the returns: the first georeferences every return with the configured
-//! values (in parallel) and files those on a patch into visits as it goes ([`visits`]:
+//! Two passes over the returns: the first ([`scan`]) georeferences every return with the
+//! configured values (in parallel) and files those on a patch into visits as it goes ([`visits`]:
 //! time-contiguous runs over one patch in one pass, long ones thinned evenly in time, at most
 //! `max_observations` returns kept in all); the second computes each kept return's terms from the analytic Jacobian of the uncertainty model
 //! (`crate::uncertainty::PointGeometry::jacobian_e`). Every return read is counted in exactly
@@ -13,11 +13,13 @@ mod counts;
 mod joint;
 mod nothing_left;
 mod patch_index;
+mod scan;
 mod targets;
 mod visits;
 
 pub use counts::{ObserveCounts, Observed};
 pub use joint::observe_joint;
+pub use scan::{DisplacedPatch, OFF_PLANE_SHARE};
 
 use super::model::{Covariates, Effect, NavRecord, Observation, ObservationSet, Side, Visit};
 use crate::geo::rotations::{roll_pitch_heading, wrap_pi};
@@ -33,18 +35,13 @@ use crate::trajectory::{derived_motion, MotionSource, PoseCursor, Trajectory};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
-use patch_index::{PatchIndex, Place};
+use patch_index::PatchIndex;
 use rayon::prelude::*;
+use scan::{scan_returns, Scan};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 use targets::{TargetIndex, TargetVisit};
-use visits::{Hit, PendingVisit, VisitRule, Visits};
-
-/// Returns per parallel work item of the first pass.
-const CHUNK_RETURNS: usize = 1 << 15;
-/// Work items georeferenced at once before their hits are filed by reference: the chunks'
-/// own lists stay bounded (64 x 32 Ki returns) whatever the survey's length.
-const BATCH_CHUNKS: usize = 64;
+use visits::{Hit, PendingVisit};
 
 /// Checks that a pipeline can be diagnosed: per-point uncertainty needs `[uncertainty]` and
 /// the SMRMSG file; errors name the pipeline file and the missing key.
@@ -118,31 +115,25 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
     let traj = Trajectory::open(&c.inputs.sbet, c.inputs.smrmsg.as_deref(), traj_opts)?;
     let staging = tempfile::tempdir().map_err(|e| Error::io(std::env::temp_dir(), e))?;
     let files = open_profiles(c, staging.path())?;
-    let index = PatchIndex::new(&refs.patches, opts);
+    let mut index = PatchIndex::new(&refs.patches, opts);
     let targets = TargetIndex::new(&refs.control_points, opts);
-    let mut counts = ObserveCounts {
+    let counts = ObserveCounts {
         patches_read: refs.patches.len(),
         control_points_read: refs.control_points.len(),
         ..Default::default()
     };
     let rates = traj.rate_check();
-    let mut visits = Visits::new(VisitRule::patches(opts));
-    let mut target_visits = Visits::new(VisitRule::targets(opts));
-    for (pass, input) in files.iter().enumerate() {
-        let model = ReturnModel::new(p, &traj, &input.file)?;
-        let at = (&index, &targets);
-        let found = (&mut visits, &mut target_visits);
-        first_pass(&model, &input.file, (pass, at), found, &mut counts);
-    }
+    let at = (&mut index, &targets);
+    let scan = scan_returns(p, &traj, &files, at, &refs.patches, opts, counts)?;
+    let Scan {
+        mut counts,
+        visits,
+        target_visits,
+    } = scan;
     if counts.on_patches == 0 {
         nothing_left::check_rejected(p, &counts)?;
     }
     check_found(refs, opts, &counts)?;
-    let (visits, short, thinned) = visits.finish();
-    counts.in_short_visits = short;
-    counts.thinned = thinned;
-    let (target_visits, short, _) = target_visits.finish();
-    counts.target_returns_unused = short;
     let any_visit = !visits.is_empty() || !target_visits.is_empty();
     nothing_left::check_visits(p, opts, &counts, any_visit)?;
     let mut set = second_pass(p, &traj, &files, &refs.patches, &index, visits, &mut counts)?;
@@ -361,97 +352,6 @@ impl<'a> ReturnModel<'a> {
             x_e,
         })
     }
-}
-
-/// Per-chunk tallies of the first pass; hits tagged with their patch or control point.
-#[derive(Default)]
-struct ChunkTally {
-    rejected: BTreeMap<RejectReason, u64>,
-    off_patches: u64,
-    off_plane: u64,
-    hits: Vec<(usize, Hit)>,
-    target_hits: Vec<(usize, Hit)>,
-}
-
-/// Georeferences every return of one file (pass `pass`) and gives those on a control
-/// point's target (first) or on a patch to their visits (`found`: the patches', the
-/// targets'), a batch of chunks at a time.
-fn first_pass(
-    model: &ReturnModel,
-    file: &ProfileFile,
-    (pass, at): (usize, (&PatchIndex, &TargetIndex)),
-    (patches, targets): (&mut Visits, &mut Visits),
-    counts: &mut ObserveCounts,
-) {
-    let n = file.len();
-    let chunks = n.div_ceil(CHUNK_RETURNS);
-    for batch in (0..chunks).step_by(BATCH_CHUNKS) {
-        let tallies: Vec<ChunkTally> = (batch..(batch + BATCH_CHUNKS).min(chunks))
-            .into_par_iter()
-            .map(|k| {
-                chunk_tally(
-                    model,
-                    file,
-                    at,
-                    k * CHUNK_RETURNS..((k + 1) * CHUNK_RETURNS).min(n),
-                )
-            })
-            .collect();
-        for t in tallies {
-            for (reason, k) in t.rejected {
-                *counts.rejected.entry(reason).or_default() += k;
-            }
-            counts.off_patches += t.off_patches;
-            counts.off_plane += t.off_plane;
-            counts.on_patches += t.hits.len() as u64;
-            counts.on_targets += t.target_hits.len() as u64;
-            for (patch, h) in t.hits {
-                patches.push((patch, pass), h);
-            }
-            for (point, h) in t.target_hits {
-                targets.push((point, pass), h);
-            }
-        }
-        model.traj.release();
-    }
-    counts.returns_read += n as u64;
-}
-
-/// The first pass over records `range` of `file`; their pages are released after (the
-/// resident set stays flat over the file).
-fn chunk_tally(
-    model: &ReturnModel,
-    file: &ProfileFile,
-    (index, targets): (&PatchIndex, &TargetIndex),
-    range: std::ops::Range<usize>,
-) -> ChunkTally {
-    let mut tally = ChunkTally::default();
-    let mut cursor = model.cursor();
-    for i in range.clone() {
-        let r = file.get(i);
-        let loc = match model.locate(&r, &mut cursor) {
-            Err(reason) => {
-                *tally.rejected.entry(reason).or_default() += 1;
-                continue;
-            }
-            Ok(loc) => loc,
-        };
-        let hit = Hit {
-            index: i,
-            t_s: loc.t_s,
-        };
-        if let Some(t) = targets.find(&loc.x_e, r.intensity) {
-            tally.target_hits.push((t, hit));
-            continue;
-        }
-        match index.place(&loc.x_e) {
-            Place::Off => tally.off_patches += 1,
-            Place::OffPlane => tally.off_plane += 1,
-            Place::On(patch) => tally.hits.push((patch, hit)),
-        }
-    }
-    file.release(range);
-    tally
 }
 
 /// Seconds either side of a visit whose trajectory records it releases ([`observe_visit`]).

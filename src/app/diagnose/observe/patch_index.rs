@@ -26,15 +26,21 @@ pub(super) struct PatchFrame {
 /// Where a point lies relative to the patches.
 pub(super) enum Place {
     Off,
-    OffPlane,
-    On(usize),
+    /// Inside patch `.0`'s rectangle, within [`NEAR_PLANE_M`] of its plane but beyond its
+    /// tolerance.
+    OffPlane(usize),
+    /// On patch `.0`, at signed distance `.1` (m, along its normal) from its plane.
+    On(usize, f32),
 }
 
 /// The patches on an ECEF grid: a point is tested only against the patches of its cell.
 pub(super) struct PatchIndex {
     pub(super) frames: Vec<PatchFrame>,
     cells: Cells,
-    tolerance_m: f64,
+    /// Per patch, how far (m) from its plane a return is on it: `diagnose.plane_tolerance_m`,
+    /// or [`NEAR_PLANE_M`] for a patch whose returns lie off its plane as a whole (its visits
+    /// are then centred on their own median return, [`super::visits`]).
+    tolerance_m: Vec<f64>,
 }
 
 impl PatchIndex {
@@ -80,9 +86,22 @@ impl PatchIndex {
             }
         }
         PatchIndex {
+            tolerance_m: vec![opts.plane_tolerance_m; frames.len()],
             frames,
             cells,
-            tolerance_m: opts.plane_tolerance_m,
+        }
+    }
+
+    /// Takes every return within [`NEAR_PLANE_M`] of the plane of each patch `displaced`
+    /// names as on it.
+    pub(super) fn widen(&mut self, displaced: &[bool]) {
+        for (tolerance, _) in self
+            .tolerance_m
+            .iter_mut()
+            .zip(displaced)
+            .filter(|(_, d)| **d)
+        {
+            *tolerance = NEAR_PLANE_M;
         }
     }
 
@@ -92,22 +111,24 @@ impl PatchIndex {
             return Place::Off;
         };
         let mut best: Option<(usize, f64)> = None;
-        let mut near = false;
+        let mut near: Option<(usize, f64)> = None;
         for &k in list {
             let f = &self.frames[k];
             let c = f.axes_e * (x_e - f.centre_e);
             if c.x.abs() > f.half_m.0 || c.y.abs() > f.half_m.1 || c.z.abs() > NEAR_PLANE_M {
                 continue;
             }
-            near = true;
-            if c.z.abs() <= self.tolerance_m && best.is_none_or(|(_, d)| c.z.abs() < d) {
-                best = Some((k, c.z.abs()));
+            if near.is_none_or(|(_, d)| c.z.abs() < d.abs()) {
+                near = Some((k, c.z));
+            }
+            if c.z.abs() <= self.tolerance_m[k] && best.is_none_or(|(_, d)| c.z.abs() < d.abs()) {
+                best = Some((k, c.z));
             }
         }
         match (best, near) {
-            (Some((k, _)), _) => Place::On(k),
-            (None, true) => Place::OffPlane,
-            (None, false) => Place::Off,
+            (Some((k, d)), _) => Place::On(k, d as f32),
+            (None, Some((k, _))) => Place::OffPlane(k),
+            (None, None) => Place::Off,
         }
     }
 }

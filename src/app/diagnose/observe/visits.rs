@@ -8,11 +8,13 @@ use crate::pipeline::config::DiagnoseConfig;
 use std::collections::BTreeMap;
 
 /// One return on a reference (a patch or a control point's target), from the first pass:
-/// its record in the pass's file and its time (s). 16 bytes.
+/// its record in the pass's file, its time (s) and its signed distance from the patch's plane
+/// (m, along the normal; 0 on a target).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Hit {
     pub index: usize,
     pub t_s: f64,
+    pub d_m: f32,
 }
 
 /// A visit before its observations are computed: reference (patch or control point), pass
@@ -21,6 +23,20 @@ pub(super) struct PendingVisit {
     pub patch: usize,
     pub pass: usize,
     pub hits: Vec<Hit>,
+}
+
+/// The visits made, and the account of the returns left out.
+pub(super) struct Closed {
+    /// By (reference, pass), in time order within one.
+    pub visits: Vec<PendingVisit>,
+    /// Returns in visits with fewer than `min_returns`.
+    pub short: u64,
+    /// Returns thinned out of kept visits, and those of visits left out for the budget.
+    pub thinned: u64,
+    /// Returns of centred visits further than `band_m` from their visit's median.
+    pub off_band: u64,
+    /// Per centred reference, the median distance from its plane (m) of each of its visits.
+    pub medians: BTreeMap<usize, Vec<f64>>,
 }
 
 /// How returns on one reference in one pass make visits.
@@ -75,10 +91,14 @@ pub(super) struct Visits {
     /// the budget): each reference keeps visits spread over the whole survey.
     stride: u64,
     kept: usize,
-    /// Returns in visits with fewer than `min_returns`.
-    pub short: u64,
-    /// Returns thinned out of kept visits, and those of visits left out for the budget.
-    pub thinned: u64,
+    short: u64,
+    thinned: u64,
+    /// References whose visits keep only their returns within `band_m` of the visit's median
+    /// distance from the plane ([`Visits::centre_on_median`]); empty: none.
+    centred: Vec<bool>,
+    band_m: f64,
+    off_band: u64,
+    medians: BTreeMap<usize, Vec<f64>>,
 }
 
 impl Visits {
@@ -93,7 +113,18 @@ impl Visits {
             kept: 0,
             short: 0,
             thinned: 0,
+            centred: Vec::new(),
+            band_m: 0.0,
+            off_band: 0,
+            medians: BTreeMap::new(),
         }
+    }
+
+    /// Keeps of each visit on a reference `centred` names only the returns within `band_m`
+    /// (m) of the visit's median distance from the plane: a patch whose returns lie off its
+    /// plane as a whole (docs/diagnosis.md, "Patches off their plane").
+    pub fn centre_on_median(&mut self, centred: Vec<bool>, band_m: f64) {
+        (self.centred, self.band_m) = (centred, band_m);
     }
 
     /// Adds `hit` on reference and pass `key`, closing the visit open there when the hit
@@ -119,7 +150,7 @@ impl Visits {
 
     /// Closes every open visit and gives all visits, by (reference, pass) and in time order
     /// within one, with at most the budget of returns.
-    pub fn finish(mut self) -> (Vec<PendingVisit>, u64, u64) {
+    pub fn finish(mut self) -> Closed {
         for (key, (run, _, _)) in std::mem::take(&mut self.open) {
             self.close(key, run);
         }
@@ -130,11 +161,20 @@ impl Visits {
         // Stable: the visits of one (reference, pass) closed in time order.
         closed.sort_by_key(|v| (v.patch, v.pass));
         let visits = self.within_budget(closed);
-        (visits, self.short, self.thinned)
+        Closed {
+            visits,
+            short: self.short,
+            thinned: self.thinned,
+            off_band: self.off_band,
+            medians: self.medians,
+        }
     }
 
     fn close(&mut self, (patch, pass): (usize, usize), mut run: Vec<Hit>) {
         run.sort_by(|a, b| a.t_s.total_cmp(&b.t_s).then(a.index.cmp(&b.index)));
+        if self.centred.get(patch).copied().unwrap_or(false) {
+            run = self.about_median(patch, run);
+        }
         if run.len() < self.rule.min_returns {
             self.short += run.len() as u64;
             return;
@@ -223,6 +263,20 @@ impl Visits {
         visits
     }
 
+    /// The returns of `run` within `band_m` of its median distance from the plane (the lower
+    /// median); counts the others and notes the median.
+    fn about_median(&mut self, patch: usize, run: Vec<Hit>) -> Vec<Hit> {
+        let mut d: Vec<f32> = run.iter().map(|h| h.d_m).collect();
+        d.sort_by(f32::total_cmp);
+        let median = f64::from(d[(d.len() - 1) / 2]);
+        self.medians.entry(patch).or_default().push(median);
+        let band_m = self.band_m;
+        let near = |h: &Hit| (f64::from(h.d_m) - median).abs() <= band_m;
+        let kept: Vec<Hit> = run.iter().copied().filter(near).collect();
+        self.off_band += (run.len() - kept.len()) as u64;
+        kept
+    }
+
     /// At most `max` of `run`, evenly spaced by position (the first kept); counts the others.
     fn thin(&mut self, run: &[Hit], max: usize) -> Vec<Hit> {
         if run.len() <= max {
@@ -255,7 +309,14 @@ mod tests {
             for j in 0..per {
                 for patch in [0, 1] {
                     let t_s = 2.0 * k as f64 + 0.01 * j as f64;
-                    visits.push((patch, 0), Hit { index, t_s });
+                    visits.push(
+                        (patch, 0),
+                        Hit {
+                            index,
+                            t_s,
+                            d_m: 0.0,
+                        },
+                    );
                     index += 1;
                 }
             }
@@ -276,6 +337,7 @@ mod tests {
                 Hit {
                     index: 1000 + j,
                     t_s: 100.0 + 0.1 * j as f64,
+                    d_m: 0.0,
                 },
             );
         }
@@ -284,10 +346,16 @@ mod tests {
             Hit {
                 index: 2000,
                 t_s: 200.0,
+                d_m: 0.0,
             },
         );
         n += 71;
-        let (visits, short, thinned) = v.finish();
+        let Closed {
+            visits,
+            short,
+            thinned,
+            ..
+        } = v.finish();
         let kept: usize = visits.iter().map(|v| v.hits.len()).sum();
         assert_eq!(kept as u64 + short + thinned, n);
         assert_eq!(short, 1);
@@ -313,6 +381,34 @@ mod tests {
         assert_eq!(long[0].t_s, 100.0);
     }
 
+    /// A centred visit keeps the returns about its median (here 0.21 m off the plane, as a
+    /// lever arm's error moves a ground patch) and counts the clutter 0.8 m off; a visit on
+    /// another reference is untouched.
+    #[test]
+    fn centred_visits_keep_their_bulk_about_its_median() {
+        let mut v = Visits::new(rule(usize::MAX));
+        v.centre_on_median(vec![true, false], 0.15);
+        for (patch, j) in (0..2).flat_map(|p| (0..12).map(move |j| (p, j))) {
+            let d_m = if j % 4 == 3 {
+                0.8
+            } else {
+                0.21 + 0.001 * j as f32
+            };
+            let t_s = 0.01 * j as f64;
+            let index = 100 * patch + j;
+            v.push((patch, 0), Hit { index, t_s, d_m });
+        }
+        let c = v.finish();
+        let lengths: Vec<usize> = c.visits.iter().map(|v| v.hits.len()).collect();
+        assert_eq!((c.short, c.thinned, c.off_band), (0, 0, 3));
+        assert_eq!(lengths, [9, 12]);
+        assert!(c.visits[0].hits.iter().all(|h| h.d_m < 0.3));
+        let medians = &c.medians[&0];
+        assert_eq!(medians.len(), 1);
+        assert!((medians[0] - 0.216).abs() < 1e-6, "{medians:?}");
+        assert!(!c.medians.contains_key(&1));
+    }
+
     /// Under a budget the kept returns never exceed it, at any length, and what is kept stays
     /// spread over the whole survey; every hit is accounted for.
     #[test]
@@ -320,7 +416,12 @@ mod tests {
         for (passes, budget) in [(10, 200), (100, 200), (1000, 200), (1000, 40), (1000, 4)] {
             let mut v = Visits::new(rule(budget));
             let n = stream(&mut v, passes, 12);
-            let (visits, short, thinned) = v.finish();
+            let Closed {
+                visits,
+                short,
+                thinned,
+                ..
+            } = v.finish();
             let kept: usize = visits.iter().map(|v| v.hits.len()).sum();
             assert!(
                 kept <= budget,

@@ -2,7 +2,7 @@
 //! documented extras of docs/diagnosis.md) and `summary.md`, what a surveyor reads first.
 
 use super::nuisance::screen;
-use super::observe::ObserveCounts;
+use super::observe::{ObserveCounts, OFF_PLANE_SHARE};
 use crate::io::atomic::write_atomic;
 use crate::{Error, Result};
 use serde::Serialize;
@@ -312,6 +312,33 @@ No catalogue effect is named; each would \
         s.push('\n');
     }
 
+    /// Patches whose returns lay off their plane as a whole, by patch.
+    fn write_displaced(&self, s: &mut String) {
+        let displaced = &self.counts.displaced_patches;
+        if displaced.is_empty() {
+            return;
+        }
+        let _ = writeln!(
+            s,
+            "\nPatches off their plane: on {} patches more than {:.0}% of the returns inside the \
+             rectangle and within 1 m of the plane were beyond `plane_tolerance_m`. The \
+             configuration (or the patch file) is off by more than that tolerance; these \
+             patches were observed about each visit's median distance from the plane instead \
+             of cut.\n\n| patch | share off the plane | median offset (m) |\n|---|---:|---:|",
+            displaced.len(),
+            100.0 * OFF_PLANE_SHARE
+        );
+        for d in displaced {
+            let _ = writeln!(
+                s,
+                "| {} | {:.0}% | {:+.3} |",
+                d.id,
+                100.0 * d.off_plane_share,
+                d.median_offset_m
+            );
+        }
+    }
+
     /// Returns set aside as foreign to their reference, by reference.
     fn write_foreign(&self, s: &mut String) {
         let f = &self.foreign;
@@ -503,6 +530,7 @@ No catalogue effect is named; each would \
             self.split.fit.len(),
             self.split.held_out.len()
         );
+        self.write_displaced(&mut s);
         self.write_foreign(&mut s);
         let r = &self.rates;
         let _ = writeln!(
