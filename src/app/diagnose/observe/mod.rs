@@ -2,12 +2,13 @@
 //! rectangle, near its plane) becomes one [`Observation`] with its residual from the plane, its
 //! predicted variance parts and the signatures of the catalogue effects (docs/diagnosis.md).
 //!
-//! Two passes over the returns: the first ([`scan`]) georeferences every return with the
-//! configured values (in parallel) and files those on a patch into visits as it goes ([`visits`]:
-//! time-contiguous runs over one patch in one pass, long ones thinned evenly in time, at most
-//! `max_observations` returns kept in all); the second computes each kept return's terms from the analytic Jacobian of the uncertainty model
-//! (`crate::uncertainty::PointGeometry::jacobian_e`). Every return read is counted in exactly
-//! one class of [`ObserveCounts`].
+//! Two passes over the returns. The first ([`scan`]) georeferences every return with the
+//! configured values (in parallel) and files those on a patch into visits as it goes
+//! ([`visits`]: time-contiguous runs over one patch in one pass, long ones thinned evenly in
+//! time, at most `max_observations` returns kept in all); it runs again when a patch lies off
+//! its plane as a whole. The second computes each kept return's terms from the analytic
+//! Jacobian of the uncertainty model (`crate::uncertainty::PointGeometry::jacobian_e`). Every
+//! return read is counted in exactly one class of [`ObserveCounts`].
 
 mod counts;
 mod joint;
