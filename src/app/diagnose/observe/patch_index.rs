@@ -95,13 +95,10 @@ impl PatchIndex {
     /// Takes every return within [`NEAR_PLANE_M`] of the plane of each patch `displaced`
     /// names as on it.
     pub(super) fn widen(&mut self, displaced: &[bool]) {
-        for (tolerance, _) in self
-            .tolerance_m
-            .iter_mut()
-            .zip(displaced)
-            .filter(|(_, d)| **d)
-        {
-            *tolerance = NEAR_PLANE_M;
+        for (tolerance, &off) in self.tolerance_m.iter_mut().zip(displaced) {
+            if off {
+                *tolerance = NEAR_PLANE_M;
+            }
         }
     }
 
