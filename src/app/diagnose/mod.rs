@@ -580,15 +580,7 @@ fn statistics(
                 .map(|e| e.name().to_string())
                 .collect(),
         },
-        groups: obs
-            .groups
-            .iter()
-            .filter(|g| g.members.len() > 1)
-            .map(|g| report::GroupReport {
-                members: g.members.iter().map(|e| e.name().to_string()).collect(),
-                hint: g.separating_data.join("; "),
-            })
-            .collect(),
+        groups: group_reports(&sel.named_groups, &obs.groups),
         candidates: sel
             .candidates
             .iter()
@@ -634,6 +626,28 @@ fn statistics(
         },
         analysis: a,
     })
+}
+
+/// The groups of more than one member: the named explanation's (with their rivals), then the
+/// geometry's others.
+fn group_reports(
+    named: &[select::observability::Group],
+    geometry: &[select::observability::Group],
+) -> Vec<report::GroupReport> {
+    let names = |e: &[model::Effect]| e.iter().map(|e| e.name().to_string()).collect();
+    let in_named =
+        |g: &select::observability::Group| named.iter().any(|n| n.members.contains(&g.members[0]));
+    named
+        .iter()
+        .chain(geometry.iter().filter(|g| !in_named(g)))
+        .filter(|g| g.members.len() > 1)
+        .map(|g| report::GroupReport {
+            members: names(&g.members),
+            hint: g.separating_data.join("; "),
+            rivals: names(&g.rivals),
+            max_abs_correlation: g.max_abs_correlation,
+        })
+        .collect()
 }
 
 fn report_verdict(v: select::Verdict) -> report::Verdict {

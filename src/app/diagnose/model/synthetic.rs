@@ -19,6 +19,9 @@ pub struct Scenario {
     /// Second effect whose signature is made nearly equal to the first's (correlation
     /// above 0.9), when given.
     pub twin: Option<(Effect, Effect)>,
+    /// The twin's own part, relative to the first's signature: 0.15 (the default) keeps their
+    /// correlation above 0.9; larger shares lower it.
+    pub twin_own: f64,
     /// Amplitude (m) of an out-of-model residual periodic in range (period 12 m).
     pub range_cyclic_m: f64,
     /// Navigation errors correlated across visits (Gauss-Markov, position and attitude
@@ -60,6 +63,7 @@ impl Default for Scenario {
             sigma_att_rad: 1e-4,
             truth: Vec::new(),
             twin: None,
+            twin_own: 0.15,
             range_cyclic_m: 0.0,
             nav_tau_s: None,
             nav_scale: [1.0, 1.0],
@@ -162,7 +166,9 @@ pub fn draw(s: &Scenario, seed: u64) -> ObservationSet {
                 let mut signature = signatures(&covariates, u);
                 if let Some((a, b)) = s.twin {
                     signature[signature_index(b)] = 1.3 * signature[signature_index(a)]
-                        + 0.15 * normal(&mut rng) * signature[signature_index(a)].abs().max(0.3);
+                        + s.twin_own
+                            * normal(&mut rng)
+                            * signature[signature_index(a)].abs().max(0.3);
                 }
                 let lever = covariates.range_m;
                 let nav_gradient = [

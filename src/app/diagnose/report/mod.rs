@@ -90,6 +90,12 @@ pub struct GroupReport {
     pub members: Vec<String>,
     /// The data that would separate them.
     pub hint: String,
+    /// Members joined by the residuals, not by the geometry: the named group's effect, added
+    /// with one of these in its place, is not significant (docs/diagnosis.md, "Rivals").
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub rivals: Vec<String>,
+    /// The largest |correlation| between two members' estimates fitted together.
+    pub max_abs_correlation: f64,
 }
 
 /// One tested candidate (an effect, a group's preferred member, or a combination).
@@ -416,12 +422,26 @@ No catalogue effect is named; each would \
             if i == 0 {
                 let _ = writeln!(s, "## Effects these references cannot tell apart\n");
             }
+            let why = if g.rivals.is_empty() {
+                "|correlation| > 0.9 on these references".to_string()
+            } else {
+                format!(
+                    "|correlation| up to {:.2} on these references; `{}` added to any of {} in \
+                     its place is not significant",
+                    g.max_abs_correlation,
+                    g.members[0],
+                    g.rivals
+                        .iter()
+                        .map(|m| format!("`{m}`"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )
+            };
             let _ = writeln!(
                 s,
-                "The residuals fit each of {} equally well (|correlation| > 0.9 on these \
-                 references): the estimate of each is what it would be if it alone were the \
-                 cause. The re-run corrects `{}` (the more common cause). To tell them apart: \
-                 {}.\n",
+                "The residuals fit each of {} equally well ({why}): the estimate of each is \
+                 what it would be if it alone were the cause. The re-run corrects `{}` (the \
+                 one chosen). To tell them apart: {}.\n",
                 g.members
                     .iter()
                     .map(|m| format!("`{m}`"))

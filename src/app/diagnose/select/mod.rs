@@ -7,7 +7,7 @@
 use self::observability::{observability_of, Group, Observability};
 use super::model::fit::{Fit, Normals, Split};
 use super::model::metrics::{chi2_sf, chi2_sf_spread, holm_adjusted, normal_sf};
-use super::model::{Effect, ObservationSet, Theta};
+use super::model::{signature_index, Effect, ObservationSet, Theta};
 use crate::Result;
 use nalgebra::DMatrix;
 use std::cell::RefCell;
@@ -141,6 +141,10 @@ pub struct Selection {
     /// The same test after the chosen explanation (held-out references, estimates from the
     /// fit references).
     pub remaining: Option<NullTest>,
+    /// The chosen explanation's groups, each joined by the groups the residuals cannot reject
+    /// in its place ([`Group::rivals`]), in the order of `chosen`'s effects; empty without an
+    /// explanation.
+    pub named_groups: Vec<Group>,
     /// Observability on the fit references.
     pub observability: Observability,
     /// Every candidate tried, largest held-out reduction first.
@@ -248,6 +252,21 @@ impl<'a> Context<'a> {
 
     fn effects(&self, groups: &[usize]) -> Vec<Effect> {
         groups.iter().map(|&g| self.groups[g].members[0]).collect()
+    }
+
+    /// The largest |correlation| on the fit references between a member of group `a` and one
+    /// of group `b`, each pair fitted together.
+    fn largest_correlation(&self, a: usize, b: usize) -> f64 {
+        let m = &self.fit.normals.m;
+        let col = signature_index;
+        let mut largest: f64 = 0.0;
+        for &x in &self.groups[a].members {
+            for &y in &self.groups[b].members {
+                let (i, j) = (col(x), col(y));
+                largest = largest.max(m[(i, j)].abs() / (m[(i, i)] * m[(j, j)]).sqrt());
+            }
+        }
+        largest
     }
 
     /// The GLS fit of `effects` on the fit references; `None` when inseparable.
@@ -440,6 +459,46 @@ fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
     (candidates, chosen)
 }
 
+/// The chosen explanation's groups, each joined by its rivals: the groups not chosen that the
+/// residuals cannot reject in its place. A group `h` is a rival of the chosen `g` when `g`,
+/// added to the explanation with `h` in its place, is not significant at `alpha` (the
+/// likelihood ratio on the fit references, its largest p-value over the navigation models),
+/// or cannot be separated there. A rival is joined to the first chosen group it stands in
+/// for. Whatever the geometry's correlation, the residuals then do not tell the two apart: a
+/// small effect seen through a correlated one is named with it, not instead of it.
+fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
+    let rep = |g: usize| cx.groups[g].members[0];
+    let mut taken: Vec<usize> = chosen.groups.clone();
+    let mut out = Vec::with_capacity(chosen.groups.len());
+    for (slot, &g) in chosen.groups.iter().enumerate() {
+        let mut named = cx.groups[g].clone();
+        for h in 0..cx.groups.len() {
+            if taken.contains(&h) {
+                continue;
+            }
+            let mut swap = cx.effects(&chosen.groups);
+            swap[slot] = rep(h);
+            let Some(chi2_swap) = cx.fit.chi2_of(&swap) else {
+                continue;
+            };
+            let mut both = swap.clone();
+            both.push(rep(g));
+            let p = match cx.fit.chi2_of(&both) {
+                Some(chi2_both) => {
+                    cx.p_over_models(chi2_sf(chi2_swap - chi2_both, 1), &both, &swap)
+                }
+                None => 1.0,
+            };
+            if p > alpha {
+                named.join_rival(&cx.groups[h], cx.largest_correlation(g, h));
+                taken.push(h);
+            }
+        }
+        out.push(named);
+    }
+    out
+}
+
 /// Selects the explanation of the gap: fits on `split.fit`, judges on `split.held_out`, tests
 /// at family-wise error rate `alpha` ([`DEFAULT_ALPHA`] by default); the held-out chi-square
 /// tests with `held_out_chi2_var` added to their variance (the learned navigation model's
@@ -493,7 +552,13 @@ pub fn select(
         (_, true) => Verdict::Unexplained,
         (None, false) => Verdict::None,
     };
-    let proposed = chosen.as_ref().map(|c| named(&cx, c)).transpose()?;
+    let named_groups = chosen
+        .as_ref()
+        .map_or_else(Vec::new, |c| self::named_groups(&cx, c, alpha));
+    let proposed = chosen
+        .as_ref()
+        .map(|c| named(&cx, c, &named_groups))
+        .transpose()?;
     let (effects, estimate, sigma) = match (&proposed, verdict) {
         (Some(n), Verdict::Effect) => (n.effects.clone(), n.estimate.clone(), n.sigma.clone()),
         _ => (Vec::new(), Vec::new(), Vec::new()),
@@ -508,6 +573,7 @@ pub fn select(
         closure,
         null,
         remaining,
+        named_groups,
         observability,
         candidates,
         alpha,
@@ -525,12 +591,13 @@ pub struct Named {
     pub sigma: Vec<f64>,
 }
 
-/// Every member of the chosen groups with its estimate and sigma (a non-preferred member
-/// fitted in place of the preferred one, or alone when that is singular).
-fn named(cx: &Context, chosen: &Candidate) -> Result<Named> {
+/// Every member of the chosen groups and their rivals (`groups`, [`named_groups`]) with its
+/// estimate and sigma (another than the preferred member fitted in its place, or alone when
+/// that is singular).
+fn named(cx: &Context, chosen: &Candidate, groups: &[Group]) -> Result<Named> {
     let (mut effects, mut estimate, mut sigma) = (Vec::new(), Vec::new(), Vec::new());
-    for (slot, &g) in chosen.groups.iter().enumerate() {
-        for (m, &member) in cx.groups[g].members.iter().enumerate() {
+    for (slot, group) in groups.iter().enumerate() {
+        for (m, &member) in group.members.iter().enumerate() {
             // A member that cannot stand in for the preferred one beside the other groups
             // (singular together) is estimated alone.
             let (fit, at) = if m == 0 {

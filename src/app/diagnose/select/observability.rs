@@ -98,6 +98,28 @@ pub struct Group {
     pub max_abs_correlation: f64,
     /// What data would separate the members (empty for one member).
     pub separating_data: Vec<&'static str>,
+    /// Members joined by the residuals, not by the geometry: groups the survey's residuals
+    /// cannot reject in place of the chosen one (`select`'s rivals; empty here).
+    pub rivals: Vec<Effect>,
+}
+
+impl Group {
+    /// `self` with the members of `rival` joined (a group the residuals cannot reject in its
+    /// place), `correlation` the largest |correlation| between the two groups' members.
+    pub(crate) fn join_rival(&mut self, rival: &Group, correlation: f64) {
+        let hint = separating_data(kind(self.members[0]), kind(rival.members[0]));
+        for h in std::iter::once(hint).chain(rival.separating_data.iter().copied()) {
+            if !self.separating_data.contains(&h) {
+                self.separating_data.push(h);
+            }
+        }
+        self.members.extend(&rival.members);
+        self.rivals.extend(&rival.members);
+        self.max_abs_correlation = self
+            .max_abs_correlation
+            .max(rival.max_abs_correlation)
+            .max(correlation);
+    }
 }
 
 /// How well the effects can be estimated on a set of references, before any solving.
@@ -225,6 +247,7 @@ fn group(effects: &[Effect], correlation: &DMatrix<f64>) -> Vec<Group> {
             members: idx.iter().map(|&i| effects[i]).collect(),
             max_abs_correlation,
             separating_data: separating,
+            rivals: Vec::new(),
         });
     }
     groups.sort_by_key(|g| preference_rank(g.members[0]));

@@ -15,7 +15,7 @@
 //! `Phi(delta / s_f - z(alpha / 2m)) Phi(delta / s_h - z(alpha))` (`s_f`, `s_h` the sigma of
 //! the effect fitted alone on either half, `m` the first-step candidates), then bisected.
 //! An effect in an inseparable group is named with its group (each member here with the
-//! signature of its own).
+//! signature of its own), and with the group it is a rival of ([`super::named_groups`]).
 //!
 //! Where the selection's tests take their largest p-value over other navigation models (the
 //! ends of the profile interval, `nuisance::interval_ends`), each draw holds the fit scores
@@ -28,7 +28,7 @@
 //! again) and the sampling error of the navigation model inside its profile interval.
 
 use super::observability::Group;
-use super::{choose, Context, Covariances, OtherModel};
+use super::{choose, named_groups, Context, Covariances, OtherModel};
 use crate::app::diagnose::model::fit::{sigma_sqrt, Normals};
 use crate::app::diagnose::model::metrics::normal_sf;
 use crate::app::diagnose::model::{signature_index, Effect, N_EFFECTS};
@@ -171,9 +171,9 @@ impl Survey<'_> {
             let others = models.map(|(n, c)| (n, c, false));
             let cx = Context::new(estimated, others, &held, self.groups);
             let names = choose(&cx, self.alpha).1.is_some_and(|c| {
-                c.groups
+                named_groups(&cx, &c, self.alpha)
                     .iter()
-                    .any(|&g| self.groups[g].members.contains(&effect))
+                    .any(|g| g.members.contains(&effect))
             });
             if names {
                 named += 1;
