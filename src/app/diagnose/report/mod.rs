@@ -91,7 +91,8 @@ pub struct GroupReport {
     /// The data that would separate them.
     pub hint: String,
     /// Members joined by the residuals, not by the geometry: the named group's effect, added
-    /// with one of these in its place, is not significant (docs/diagnosis.md, "Rivals").
+    /// with one of these in its place, is not significant (docs/diagnosis.md, "Selection and
+    /// verdict", 4a).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub rivals: Vec<String>,
     /// The largest |correlation| between two members' estimates fitted together.
