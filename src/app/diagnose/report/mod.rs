@@ -423,31 +423,35 @@ No catalogue effect is named; each would \
             if i == 0 {
                 let _ = writeln!(s, "## Effects these references cannot tell apart\n");
             }
-            let why = if g.rivals.is_empty() {
-                "|correlation| > 0.9 on these references".to_string()
+            let list = |m: &[String]| {
+                m.iter()
+                    .map(|m| format!("`{m}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            let (why, corrected) = if g.rivals.is_empty() {
+                (
+                    "|correlation| > 0.9 on these references".to_string(),
+                    "the more common cause",
+                )
             } else {
-                format!(
-                    "|correlation| up to {:.2} on these references; `{}` added to any of {} in \
-                     its place is not significant",
-                    g.max_abs_correlation,
-                    g.members[0],
-                    g.rivals
-                        .iter()
-                        .map(|m| format!("`{m}`"))
-                        .collect::<Vec<_>>()
-                        .join(", ")
+                (
+                    format!(
+                        "|correlation| up to {:.2} on these references, and `{}` is not \
+                         significant beside any one of {} put in its place",
+                        g.max_abs_correlation,
+                        g.members[0],
+                        list(&g.rivals)
+                    ),
+                    "the one the selection chose",
                 )
             };
             let _ = writeln!(
                 s,
-                "The residuals fit each of {} equally well ({why}): the estimate of each is \
-                 what it would be if it alone were the cause. The re-run corrects `{}` (the \
-                 one chosen). To tell them apart: {}.\n",
-                g.members
-                    .iter()
-                    .map(|m| format!("`{m}`"))
-                    .collect::<Vec<_>>()
-                    .join(", "),
+                "The residuals fit each of {} about as well ({why}): the estimate of each is \
+                 what it would be if it alone were the cause. The re-run corrects `{}` \
+                 ({corrected}). To tell them apart: {}.\n",
+                list(&g.members),
                 g.members[0],
                 g.hint
             );
