@@ -258,11 +258,10 @@ impl<'a> Context<'a> {
     /// of group `b`, each pair fitted together.
     fn largest_correlation(&self, a: usize, b: usize) -> f64 {
         let m = &self.fit.normals.m;
-        let col = signature_index;
         let mut largest: f64 = 0.0;
         for &x in &self.groups[a].members {
             for &y in &self.groups[b].members {
-                let (i, j) = (col(x), col(y));
+                let (i, j) = (signature_index(x), signature_index(y));
                 largest = largest.max(m[(i, j)].abs() / (m[(i, i)] * m[(j, j)]).sqrt());
             }
         }
@@ -468,6 +467,7 @@ fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
 /// small effect seen through a correlated one is named with it, not instead of it.
 fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
     let rep = |g: usize| cx.groups[g].members[0];
+    let effects = cx.effects(&chosen.groups);
     let mut taken: Vec<usize> = chosen.groups.clone();
     let mut out = Vec::with_capacity(chosen.groups.len());
     for (slot, &g) in chosen.groups.iter().enumerate() {
@@ -476,7 +476,7 @@ fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
             if taken.contains(&h) {
                 continue;
             }
-            let mut swap = cx.effects(&chosen.groups);
+            let mut swap = effects.clone();
             swap[slot] = rep(h);
             let Some(chi2_swap) = cx.fit.chi2_of(&swap) else {
                 continue;
