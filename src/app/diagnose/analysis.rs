@@ -3,10 +3,13 @@
 //! verdict, the model-free correction along the leading covariate (docs/diagnosis.md,
 //! "Statistics").
 
-use super::locate::{locate, located_in, model_free, Correction, CovariateTest};
+use super::locate::{
+    lack_of_fit, locate, located_in, model_free, Correction, CovariateTest, LackOfFit,
+};
 use super::model::fit::{split, Split};
+use super::model::metrics::holm;
 use super::model::metrics::{gap, Gap};
-use super::model::{Covariate, ObservationSet};
+use super::model::{Covariate, Effect, ObservationSet};
 use super::select::{select, OtherModel, Selection, Verdict};
 use crate::Result;
 
@@ -137,6 +140,34 @@ pub struct Reobserved {
     pub p_value: f64,
     /// Rounds of correction and observation.
     pub rounds: usize,
+    /// The structure the explanation leaves along a covariate the gap was located in
+    /// ([`structure_left`]), when significant.
+    pub left: Option<LackOfFit>,
+}
+
+/// The most significant covariate of `located` (where the gap was found, in rank order) along
+/// which `effects`, each refitted with an amplitude of its own on `refs`, leave structure
+/// ([`lack_of_fit`]), under Holm control at `alpha` over those covariates; `None` when they
+/// leave none. Judged on the survey observed again, so the structure is what the applied
+/// correction did not remove and its effects' form cannot take up.
+pub fn structure_left(
+    set: &ObservationSet,
+    refs: &[usize],
+    located: &[Covariate],
+    effects: &[Effect],
+    (alpha, bins): (f64, usize),
+) -> Result<Option<LackOfFit>> {
+    let tests = located
+        .iter()
+        .map(|&c| lack_of_fit(set, refs, c, effects, bins))
+        .collect::<Result<Vec<_>>>()?;
+    let p: Vec<f64> = tests.iter().map(|t| t.p_value).collect();
+    Ok(tests
+        .into_iter()
+        .zip(holm(&p, alpha))
+        .filter(|(t, significant)| *significant && t.dof > 0)
+        .map(|(t, _)| t)
+        .min_by(|a, b| a.p_value.total_cmp(&b.p_value)))
 }
 
 /// The share of the held-out excess chi-square removed, in words; bounded: a gap that was
@@ -238,10 +269,20 @@ pub fn reason(
                 "no catalogue effect is significant on both halves".to_string(),
                 |f| {
                     let left = match (&again, reobserved) {
-                        (Some(a), Some(r)) => Some(format!(
-                            "{a}, which the model still rejects; {}",
-                            closing(r.chi2, r.n)
-                        )),
+                        (Some(a), Some(r)) => Some(match &r.left {
+                            Some(l) if r.p_value >= sel.alpha => format!(
+                                "{a}, but its effects, each refitted there, leave structure \
+                                 along {} (chi2 {:.1} on {} dof, p = {:.2e})",
+                                l.covariate.name(),
+                                l.chi2,
+                                l.dof,
+                                l.p_value
+                            ),
+                            _ => format!(
+                                "{a}, which the model still rejects; {}",
+                                closing(r.chi2, r.n)
+                            ),
+                        }),
                         _ => sel.remaining.map(|r| {
                             format!(
                                 "leaves chi2/dof {:.3} (p = {:.2e}, linearised), which the \

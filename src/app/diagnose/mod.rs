@@ -250,8 +250,10 @@ pub fn run_joint(
 
 /// Judges the selection's proposed explanation on the survey observed again with it
 /// ([`confirm`]): the verdict becomes `effect` when the model without it holds on the held-out
-/// references, or the re-observed held-out gap passes the same test; else `unexplained`, with
-/// the model-free correction. Updates `stats` (verdict, named, applied, reason).
+/// references, or the re-observed held-out gap passes the same test, and its effects, refitted
+/// on the re-observed held-out references, leave no structure along the covariates the gap was
+/// located in ([`analysis::structure_left`]); else `unexplained`, with the model-free
+/// correction. Updates `stats` (verdict, named, applied, reason).
 fn confirm_explanation(
     ps: &[LoadedPipeline],
     req: &Request,
@@ -286,7 +288,14 @@ fn confirm_explanation(
         learned.apply(s, held_out)
     };
     let c = confirm::confirm(ps, refs, &cfg, &req.out_dir, &proposal, &prepare)?;
-    let holds = !null_rejected || c.p_value >= alpha;
+    let left = analysis::structure_left(
+        &c.set,
+        &c.held_out,
+        &stats.analysis.located_in,
+        &proposed.effects,
+        (alpha, locate::DEFAULT_BINS),
+    )?;
+    let holds = (!null_rejected || c.p_value >= alpha) && left.is_none();
     let verdict = if holds {
         select::Verdict::Effect
     } else {
@@ -310,6 +319,7 @@ fn confirm_explanation(
         n: c.after.n,
         p_value: c.p_value,
         rounds: c.rounds,
+        left,
     };
     stats.reason = analysis::reason(
         &a.selection,

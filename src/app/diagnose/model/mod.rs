@@ -114,7 +114,12 @@ pub enum Side {
 pub struct Covariates {
     /// GPS time of the return (s).
     pub time_s: f64,
-    /// Measured range (m).
+    /// Range (m) without the return's own range noise: the measured range less the residual's
+    /// departure from its visit's mean along the beam (`observe`'s `denoised_ranges_m`). Binned
+    /// at the measured range, the bins would select on the noise that is also in the residual
+    /// (a return measured long sits in a longer bin and off its plane the same way): on 15 laps
+    /// without any effect that alone gave chi2 50-59 on 16 dof along the range
+    /// (docs/diagnosis.md, "The range covariate").
     pub range_m: f64,
     /// Mirror angle, wrapped to (-180, 180] (deg).
     pub beta_deg: f64,

@@ -524,7 +524,7 @@ fn observe_visit(
         let cov = Covariates {
             reference_id: reference,
             pass: pv.pass,
-            ..covariates(loc, model, &n_e, r)
+            ..covariates(loc, model, &n_e, r, range_m)
         };
         let ids = (reference, visit, h.index);
         let at = Surface {
@@ -602,10 +602,12 @@ const MIN_COS_INCIDENCE: f64 = 0.05;
 /// The range (m) each return of one visit would have measured without its own noise: its
 /// measured range less its residual's departure from the visit's mean residual, along the beam
 /// (`rho - (r - mean r) / (n . u)`) on the surface of unit normal `n_e` through `centre_e`.
-/// The range-scale signature is evaluated there: at the measured range it carries the return's
-/// own range noise, which is also in its residual (errors in variables: on ground patches
-/// alone a range-scale fit of -32% came from it; docs/diagnosis.md, "Observations"). What the
-/// visit shares (navigation error, an effect's offset) stays in the mean.
+/// The range-scale signature is evaluated there and the `range_m` covariate is this range: at
+/// the measured range either carries the return's own range noise, which is also in its
+/// residual (errors in variables: on ground patches alone a range-scale fit of -32% came from
+/// it; binned by the measured range, 15 laps without effect left chi2 50-59 on 16 dof;
+/// docs/diagnosis.md, "Observations"). What the visit shares (navigation error, an effect's
+/// offset) stays in the mean.
 fn denoised_ranges_m<'a>(
     located: impl Iterator<Item = (&'a RawReturn, &'a Located)> + Clone,
     model: &ReturnModel,
@@ -629,16 +631,22 @@ fn denoised_ranges_m<'a>(
         .collect()
 }
 
-/// Where and how a return was measured on a surface of unit normal `n_e` (ECEF)
-/// (`reference_id` and `pass` are set by the caller).
-fn covariates(loc: &Located, model: &ReturnModel, n_e: &Vector3<f64>, r: &RawReturn) -> Covariates {
+/// Where and how a return was measured on a surface of unit normal `n_e` (ECEF), at range
+/// `range_m` ([`denoised_ranges_m`]) (`reference_id` and `pass` are set by the caller).
+fn covariates(
+    loc: &Located,
+    model: &ReturnModel,
+    n_e: &Vector3<f64>,
+    r: &RawReturn,
+    range_m: f64,
+) -> Covariates {
     let beam_b = model.sensor.r_s_to_b * loc.terms.u_s();
     let beam_e = beam_e(loc, model);
     let w = loc.pose.omega_b_radps.map(f64::to_degrees);
     let (_, _, heading) = roll_pitch_heading(&loc.pose.q_b_to_n);
     Covariates {
         time_s: loc.t_s,
-        range_m: r.range_m,
+        range_m,
         beta_deg: wrap_pi(r.beta_rad).to_degrees(),
         incidence_deg: n_e.dot(&beam_e).abs().min(1.0).acos().to_degrees(),
         speed_mps: loc.pose.nav.v_n_mps.norm(),

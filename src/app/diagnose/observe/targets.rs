@@ -127,7 +127,7 @@ pub(super) fn observe_target(
         time_s: t_mean,
         reference_id: ids.0,
         pass: pv.pass,
-        ..covariates(&mid.loc, model, &normal, &mid.raw)
+        ..covariates(&mid.loc, model, &normal, &mid.raw, mid.range_m)
     };
     let survey_var = index.sigma_m[pv.patch].powi(2);
     let steps = Steps::of(&returns);

@@ -25,7 +25,8 @@
 //!
 //! What the draws leave out: the verdict's other conditions (the model without effect passes
 //! the held-out chi-square test, or the correction closes the gap on the survey observed
-//! again) and the sampling error of the navigation model inside its profile interval.
+//! again and leaves no structure along the located covariates) and the sampling error of the
+//! navigation model inside its profile interval.
 
 use super::observability::Group;
 use super::{choose, named_groups, Context, Covariances, OtherModel};
