@@ -24,7 +24,7 @@
 //! `KINESCAN_MATRIX_SIZES` (`2,1,0.4`), `KINESCAN_MATRIX_EFFECTS` (effect names, `none`,
 //! `out: range_cyclic`, `out: range_incidence`), `KINESCAN_MATRIX_SEEDS` (a count, default 5, or a
 //! range of seed ordinals `a-b`), the others each a comma list selecting labels (an unknown
-//! label fails).
+//! label fails); `KINESCAN_MATRIX_REASON` (set: each diagnosis' `reason` is printed too).
 
 use super::diagnose_acceptance::{
     catalogue_cases, diagnose_dir, excess_is_significant, other_cases, score, simulate_text,
@@ -271,6 +271,9 @@ fn print_outcome(label: &str, size: f64, seed: u64, d: &Diagnosis, expect: &Expe
         .join("/"),
         d.foreign.set_aside,
     );
+    if std::env::var_os("KINESCAN_MATRIX_REASON").is_some() {
+        println!("    reason: {}", d.reason);
+    }
     if let Expect::Effects(truth) = expect {
         for (e, size) in truth {
             if let Some(c) = d.candidates.iter().find(|c| c.effects == [e.name()]) {
