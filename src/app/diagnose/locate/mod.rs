@@ -377,6 +377,13 @@ pub fn lack_of_fit(
         }
         out.push((nb + k, o.residual_m));
     });
+    // A NaN would pass the clamps below as "no structure left".
+    if m.iter().any(|v| !v.is_finite()) {
+        return Err(Error::Numerical {
+            what: format!("lack of fit along {}", covariate.name()),
+            problem: "the normal equations hold a non-finite value".to_string(),
+        });
+    }
     let all: Vec<usize> = (0..nb + k).filter(|&j| m[(j, j)] > 0.0).collect();
     let signatures: Vec<usize> = all.iter().copied().filter(|&j| j >= nb).collect();
     let (chi2_all, rank_all) = explained(&m, &all, nb + k);
