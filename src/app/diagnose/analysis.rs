@@ -10,6 +10,7 @@ use super::model::fit::{split, Split};
 use super::model::metrics::holm;
 use super::model::metrics::{gap, Gap};
 use super::model::{Covariate, Effect, ObservationSet};
+use super::nuisance::{under, Nuisance};
 use super::select::{select, OtherModel, Selection, Verdict};
 use crate::Result;
 
@@ -149,18 +150,35 @@ pub struct Reobserved {
 /// which `effects`, each refitted with an amplitude of its own on `refs`, leave structure
 /// ([`lack_of_fit`]), under Holm control at `alpha` over those covariates; `None` when they
 /// leave none. Judged on the survey observed again, so the structure is what the applied
-/// correction did not remove and its effects' form cannot take up.
+/// correction did not remove and its effects' form cannot take up. With `models`, `set`
+/// carries the learned navigation model `models.0`; each covariate's test is taken under it
+/// and under every other model the survey cannot reject (`models.1`), and the least
+/// significant of them counts, as the selection's tests take their largest p-value over the
+/// same models: structure is left only where every such model finds it. Without, under
+/// `set`'s model alone. `set` is left as it was.
 pub fn structure_left(
-    set: &ObservationSet,
+    set: &mut ObservationSet,
     refs: &[usize],
     located: &[Covariate],
     effects: &[Effect],
+    models: Option<(&Nuisance, &[Nuisance])>,
     (alpha, bins): (f64, usize),
 ) -> Result<Option<LackOfFit>> {
-    let tests = located
-        .iter()
-        .map(|&c| lack_of_fit(set, refs, c, effects, bins))
-        .collect::<Result<Vec<_>>>()?;
+    // (from, to) of every other model.
+    let changes: Vec<(&Nuisance, &Nuisance)> = models.map_or_else(Vec::new, |(learned, others)| {
+        others.iter().map(|o| (learned, o)).collect()
+    });
+    let mut tests = Vec::with_capacity(located.len());
+    for &c in located {
+        let mut least = lack_of_fit(set, refs, c, effects, bins)?;
+        for &change in &changes {
+            let t = under(set, change, |s| lack_of_fit(s, refs, c, effects, bins))?;
+            if t.p_value > least.p_value {
+                least = t;
+            }
+        }
+        tests.push(least);
+    }
     let p: Vec<f64> = tests.iter().map(|t| t.p_value).collect();
     Ok(tests
         .into_iter()
@@ -168,6 +186,37 @@ pub fn structure_left(
         .filter(|(t, significant)| *significant && t.dof > 0)
         .map(|(t, _)| t)
         .min_by(|a, b| a.p_value.total_cmp(&b.p_value)))
+}
+
+/// The reason of an `unexplained` verdict where the held-out chi-square passes and no
+/// catalogue effect is significant, but the structure the fit references located is
+/// confirmed on the held-out references (`left`, along the first significant covariate).
+pub fn structure_confirmed_reason(
+    sel: &Selection,
+    located: &[Covariate],
+    left: &LackOfFit,
+    correction: &Correction,
+) -> String {
+    let covariates = located
+        .iter()
+        .map(|c| c.name())
+        .collect::<Vec<_>>()
+        .join(", ");
+    format!(
+        "the survey departs from its model along {}: the fit references locate structure \
+         there and the held-out references confirm it (chi2 {:.1} on {} dof, p = {:.2e}), \
+         though over all held-out returns chi2/dof is {:.3} (p = {:.2e}); no catalogue effect \
+         is significant on both halves at {}; it lies along {covariates}; a binned offset along \
+         {} is the model-free correction",
+        left.covariate.name(),
+        left.chi2,
+        left.dof,
+        left.p_value,
+        sel.null.chi2 / sel.null.n as f64,
+        sel.null.p_value,
+        sel.alpha,
+        correction.covariate.name()
+    )
 }
 
 /// The share of the held-out excess chi-square removed, in words; bounded: a gap that was
@@ -316,6 +365,7 @@ pub fn reason(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::app::diagnose::model::fit::split;
     use crate::app::diagnose::model::synthetic::{draw, fill_residuals, Scenario};
     use crate::app::diagnose::model::Effect;
 
@@ -354,5 +404,64 @@ mod tests {
         let c = a.model_free.as_ref().unwrap();
         assert!(c.closure.unwrap() >= 0.5, "{}", a.reason);
         assert!(a.reason.contains("along range_m"), "{}", a.reason);
+    }
+
+    /// `none`'s confirmation on the held-out references (`structure_left` of no effect,
+    /// docs/diagnosis.md, "Selection and verdict"): over 60 draws without any effect, every
+    /// covariate taken as located, it finds structure on at most 3 (Holm at 0.01 over the
+    /// covariates: about 0.6 expected; 1 measured); with a cyclic range error of 2.5 mm (white
+    /// noise 10 mm), which the held-out chi-square over every return passes on about two
+    /// thirds of the draws while the fit references locate it along `range_m`, it confirms
+    /// the structure on 80% or more of those (37 of 41 measured).
+    #[test]
+    fn held_out_references_confirm_located_structure() {
+        let seeds = 60;
+        let mut false_alarms = 0;
+        for seed in 0..seeds {
+            let mut set = draw(&Scenario::default(), 500 + seed);
+            let sp = split(&set, seed).unwrap();
+            let left = structure_left(
+                &mut set,
+                &sp.held_out,
+                &Covariate::ALL,
+                &[],
+                None,
+                (0.01, 16),
+            )
+            .unwrap();
+            false_alarms += usize::from(left.is_some());
+        }
+        let (mut blunt, mut located, mut confirmed) = (0, 0, 0);
+        for seed in 0..seeds {
+            let scenario = Scenario {
+                range_cyclic_m: 0.0025,
+                ..Default::default()
+            };
+            let mut set = draw(&scenario, 600 + seed);
+            let a = analyse(&set, &Settings::default(), &[]).unwrap();
+            if a.selection.null.rejected || a.located_in.is_empty() {
+                continue;
+            }
+            blunt += 1;
+            located += usize::from(a.located_in[0] == Covariate::RangeM);
+            let left = structure_left(
+                &mut set,
+                &a.split.held_out,
+                &a.located_in,
+                &[],
+                None,
+                (0.01, 16),
+            )
+            .unwrap();
+            confirmed += usize::from(left.is_some_and(|l| l.covariate == Covariate::RangeM));
+        }
+        println!(
+            "no effect: structure on {false_alarms}/{seeds}; cyclic 2.5 mm: the held-out chi2 \
+             passes and structure is located on {blunt}, along range_m on {located}, \
+             confirmed on {confirmed}"
+        );
+        assert!(false_alarms <= 3, "{false_alarms}/{seeds}");
+        assert!(blunt >= 30, "{blunt}/{seeds}");
+        assert!(confirmed * 10 >= located * 8, "{confirmed}/{located}");
     }
 }

@@ -509,13 +509,7 @@ No catalogue effect is named; each would \
             s.push('\n');
         }
         if let Some(m) = &self.model_free {
-            let _ = writeln!(
-                s,
-                "A model-free offset binned along `{}` closes {:.0}% of the held-out excess \
-                 chi-square (diagnosis.json `model_free`).\n",
-                m.covariate,
-                m.closed_fraction * 100.0
-            );
+            let _ = writeln!(s, "{}\n", model_free_line(m, &self.gap));
         }
         if !self.pipeline_sets.is_empty() {
             self.write_pipeline_sets(&mut s);
@@ -592,5 +586,70 @@ No catalogue effect is named; each would \
             );
         }
         s
+    }
+}
+
+/// The summary's sentence on the model-free correction `m`, against the held-out gap `gap`
+/// (after = with the correction): a share of the excess where the chi-square over every
+/// held-out return was significantly above 1 (3 of its sds), else the chi2/dof it moves, since
+/// structure confirmed beside a chi-square that passed leaves no excess to take a share of.
+fn model_free_line(m: &ModelFreeReport, gap: &GapBeforeAfter) -> String {
+    let before = gap.before.chi2_per_dof;
+    if before - 1.0 > 3.0 * gap.before_chi2_per_dof_sd {
+        format!(
+            "A model-free offset binned along `{}` closes {:.0}% of the held-out excess \
+             chi-square (diagnosis.json `model_free`).",
+            m.covariate,
+            m.closed_fraction * 100.0
+        )
+    } else {
+        format!(
+            "A model-free offset binned along `{}` takes the held-out chi2/dof from {before:.3} \
+             to {:.3}; over every held-out return there was no significant excess \
+             (diagnosis.json `model_free`).",
+            m.covariate, gap.after.chi2_per_dof
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The model-free sentence gives a share only where there was a significant excess.
+    #[test]
+    fn model_free_line_gives_a_share_only_of_a_significant_excess() {
+        let g = |chi2_per_dof: f64| GapMetrics {
+            chi2_per_dof,
+            rms_m: 0.01,
+            mean_m: 0.0,
+            coverage_95: 0.95,
+            n: 5000,
+        };
+        let m = ModelFreeReport {
+            covariate: "range_m".into(),
+            bins: Vec::new(),
+            closed_fraction: 0.9,
+        };
+        let gap = |before: f64, after: f64| GapBeforeAfter {
+            before: g(before),
+            after: g(after),
+            before_chi2_per_dof_sd: 0.02,
+            after_chi2_per_dof_sd: 0.02,
+            same_returns: true,
+        };
+        let excess = model_free_line(&m, &gap(1.5, 1.05));
+        assert!(
+            excess.contains("closes 90% of the held-out excess"),
+            "{excess}"
+        );
+        // 0.995 with structure confirmed: no share of an excess that is not there.
+        let none = model_free_line(&m, &gap(0.995, 0.778));
+        assert!(
+            none.contains("from 0.995 to 0.778") && !none.contains('%'),
+            "{none}"
+        );
+        // Above 1 by less than 3 sds: still no share.
+        assert!(!model_free_line(&m, &gap(1.05, 1.0)).contains('%'));
     }
 }

@@ -34,7 +34,9 @@ pub enum Verdict {
     /// The model holds on the held-out references and no effect is significant.
     None,
     /// The model is rejected on the held-out references and no catalogue combination closes
-    /// the gap: no effect is named.
+    /// the gap, or the structure the fit references located is confirmed on the held-out
+    /// references (`app::diagnose`, docs/diagnosis.md "Selection and verdict" step 8): no
+    /// effect is named.
     Unexplained,
 }
 
