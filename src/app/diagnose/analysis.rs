@@ -349,6 +349,13 @@ pub fn reason(
                 },
             );
             let fix = correction.map_or(String::new(), |c| {
+                if !sel.null.rejected {
+                    // No excess over every return to take a share of.
+                    return format!(
+                        "; a binned offset along {} is the model-free correction",
+                        c.covariate.name()
+                    );
+                }
                 let share = c.closure.map_or("-".to_string(), |s| {
                     format!("{:.0}%", 100.0 * s.clamp(0.0, 1.0))
                 });
@@ -357,7 +364,12 @@ pub fn reason(
                     c.covariate.name()
                 )
             });
-            format!("the survey departs from its model ({null}) and {partial}; {place}{fix}")
+            let opening = if sel.null.rejected {
+                "the survey departs from its model"
+            } else {
+                "the held-out chi-square over every return passes"
+            };
+            format!("{opening} ({null}) and {partial}; {place}{fix}")
         }
     }
 }
