@@ -142,7 +142,7 @@ impl Learned {
         let nuisance = nuisance::estimate(&screened, &split.fit, &held, start)?;
         let held_out_chi2_var = nuisance::chi2_variance(&screened, &split.held_out, &nuisance);
         let ends = nuisance::interval_ends(&nuisance);
-        let widens_sigma = (0..ends.len()).map(|_| false).chain([true]);
+        let widens_sigma = std::iter::repeat_n(false, ends.len()).chain([true]);
         let alternatives: Vec<_> = ends
             .into_iter()
             .chain(nuisance::slow_alternative(&nuisance))
