@@ -173,7 +173,11 @@ pub fn structure_left(
         let mut least = lack_of_fit(set, refs, c, effects, bins)?;
         // Above `alpha` a test is significant at none of Holm's levels, and the least
         // significant over the models is no more so: the other models cannot change it.
-        let changes = if least.p_value > alpha { &[][..] } else { &changes[..] };
+        let changes = if least.p_value > alpha {
+            &[][..]
+        } else {
+            &changes[..]
+        };
         for &change in changes {
             let t = under(set, change, |s| lack_of_fit(s, refs, c, effects, bins))?;
             if t.p_value > least.p_value {
