@@ -480,7 +480,10 @@ mod tests {
              confirmed on {confirmed}"
         );
         assert!(false_alarms <= 3, "{false_alarms}/{seeds}");
-        assert!(blunt >= 30, "{blunt}/{seeds}");
+        assert!(
+            blunt >= 30 && located >= 30,
+            "{blunt}, {located} of {seeds}"
+        );
         assert!(confirmed * 10 >= located * 8, "{confirmed}/{located}");
     }
 }
