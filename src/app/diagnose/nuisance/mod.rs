@@ -1232,6 +1232,8 @@ mod tests {
                 let moved =
                     under(&mut learned, (&n, &ends[1]), |s| Normals::of(s, &sp.fit)).unwrap();
                 assert!(learned == kept, "the set is restored");
+                // f64::max below would pass a NaN by.
+                assert!(moved.m.iter().all(|v| v.is_finite()), "{}", moved.m);
                 let worst = (0..moved.m.len())
                     .map(|i| (moved.m[i] - applied.m[i]).abs() / applied.m.amax())
                     .fold(0.0, f64::max);
