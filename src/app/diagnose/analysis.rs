@@ -11,7 +11,7 @@ use super::model::metrics::holm;
 use super::model::metrics::{gap, Gap};
 use super::model::{Covariate, Effect, ObservationSet};
 use super::nuisance::{under, Nuisance};
-use super::select::{select, OtherModel, Selection, Verdict};
+use super::select::{select, Node, OtherModel, Selection, Verdict};
 use crate::Result;
 
 /// Settings of [`analyse`].
@@ -64,13 +64,13 @@ pub struct Analysis {
     pub reason: String,
 }
 
-/// Runs the statistics on `set`; `others` are the fit references' normals under the other
-/// navigation models the selection's tests take their largest p-value over
-/// ([`select`]).
+/// Runs the statistics on `set`; `models` are the fit references' normals under the other
+/// navigation models the selection's tests take their largest p-value over, and under the
+/// nodes its sigmas are averaged over ([`select`]).
 pub fn analyse(
     set: &ObservationSet,
     settings: &Settings,
-    others: &[OtherModel],
+    models: (&[OtherModel], &[Node]),
 ) -> Result<Analysis> {
     let split = split(set, settings.seed)?;
     let before = gap(set, &split.held_out, None)?;
@@ -79,7 +79,7 @@ pub fn analyse(
         &split,
         settings.alpha,
         settings.held_out_chi2_var,
-        others,
+        models,
     )?;
     let after_linear = selection
         .correction()
@@ -396,7 +396,7 @@ mod tests {
             ..Default::default()
         };
         fill_residuals(&mut set, &s, 40);
-        let a = analyse(&set, &Settings::default(), &[]).unwrap();
+        let a = analyse(&set, &Settings::default(), (&[], &[])).unwrap();
         assert_eq!(a.selection.verdict, Verdict::Effect, "{}", a.reason);
         assert_eq!(a.selection.effects, vec![Effect::BoresightY]);
         let after = a.after_linear.unwrap();
@@ -417,7 +417,7 @@ mod tests {
             },
             4,
         );
-        let a = analyse(&set, &Settings::default(), &[]).unwrap();
+        let a = analyse(&set, &Settings::default(), (&[], &[])).unwrap();
         assert_eq!(a.selection.verdict, Verdict::Unexplained, "{}", a.reason);
         assert_eq!(a.located_in, vec![Covariate::RangeM], "{}", a.reason);
         let c = a.model_free.as_ref().unwrap();
@@ -457,7 +457,7 @@ mod tests {
                 ..Default::default()
             };
             let mut set = draw(&scenario, 600 + seed);
-            let a = analyse(&set, &Settings::default(), &[]).unwrap();
+            let a = analyse(&set, &Settings::default(), (&[], &[])).unwrap();
             if a.selection.null.rejected || a.located_in.is_empty() {
                 continue;
             }

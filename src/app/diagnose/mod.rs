@@ -111,6 +111,9 @@ struct Learned {
     others: Vec<select::OtherModel>,
     /// Those other models themselves, in the same order.
     alternatives: Vec<nuisance::Nuisance>,
+    /// The fit references' normals under the nodes of the quadrature over the learned
+    /// model's sampling distribution (`nuisance::sampling_nodes`), which the sigmas average over.
+    nodes: Vec<select::Node>,
     /// What the model's sampling error adds to the variance of the held-out `r^T C^-1 r`.
     held_out_chi2_var: f64,
 }
@@ -157,6 +160,15 @@ impl Learned {
                 })
             })
             .collect::<Result<_>>()?;
+        let nodes = nuisance::sampling_nodes(&nuisance)
+            .into_iter()
+            .map(|(n, weight)| {
+                Ok(select::Node {
+                    normals: nuisance::normals_under(&mut screened, &n, &split.fit)?,
+                    weight,
+                })
+            })
+            .collect::<Result<_>>()?;
         let applied = nuisance::apply(screened, &nuisance);
         Ok((
             Learned {
@@ -164,6 +176,7 @@ impl Learned {
                 nuisance,
                 others,
                 alternatives,
+                nodes,
                 held_out_chi2_var,
             },
             applied,
@@ -600,7 +613,7 @@ fn statistics(
         alpha: cfg.alpha,
         bins: locate::DEFAULT_BINS,
     };
-    let a = analysis::analyse(set, &settings, &learned.others)?;
+    let a = analysis::analyse(set, &settings, (&learned.others, &learned.nodes))?;
     let sel = &a.selection;
     let model_free = a
         .model_free

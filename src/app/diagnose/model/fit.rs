@@ -243,12 +243,18 @@ impl Fit {
     /// Each sigma the larger of its own and `other`'s, the covariance scaled with it (its
     /// correlations kept).
     pub fn widen_sigma(&mut self, other: &[f64]) {
-        let factor: Vec<f64> = self
+        let wider: Vec<f64> = self
             .sigma
             .iter()
             .zip(other)
-            .map(|(s, o)| if o > s { o / s } else { 1.0 })
+            .map(|(s, o)| s.max(*o))
             .collect();
+        self.set_sigma(&wider);
+    }
+
+    /// The sigmas set to `sigma`, the covariance scaled with them (its correlations kept).
+    pub fn set_sigma(&mut self, sigma: &[f64]) {
+        let factor: Vec<f64> = self.sigma.iter().zip(sigma).map(|(s, o)| o / s).collect();
         for (i, fi) in factor.iter().enumerate() {
             self.sigma[i] *= fi;
             for (j, fj) in factor.iter().enumerate() {

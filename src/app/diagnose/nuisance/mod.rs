@@ -373,6 +373,74 @@ pub fn interval_ends(nuisance: &Nuisance) -> Vec<Nuisance> {
         .collect()
 }
 
+/// A scale whose conditional sd in the logarithm is below this gets no nodes: at 0.05 its
+/// nodes move a sigma by at most a factor 1.09 with weight 1/6 each, under 1% of the sigma.
+const MIN_NODE_LOG_SD: f64 = 0.05;
+
+/// The nodes of a quadrature over the learned model's sampling distribution, each with its
+/// weight (the estimate takes what they leave of 1), for the sigmas the selection averages
+/// over it (docs/diagnosis.md, "The sigmas over the model's sampling distribution"):
+/// - along the ridge of the attitude correlation time and scale, the ends of the profile
+///   interval ([`interval_ends`]), each of weight `1 / (2 z^2)` with `z = 1.96` their signed
+///   root (an end at the search bound taken as if the profile had dropped that far there);
+/// - each SMRMSG scale (position, attitude) moved by `+-sqrt(3)` of its conditional sd in the
+///   logarithm (the others held; clamped to the bounds), each node of weight 1/6.
+///
+/// With the logarithms normal, the profile's scale linear in its correlation time and the
+/// function quadratic, this is exact: the ends carry the variance along the ridge, the
+/// scales' nodes what is left of theirs beside it. Scales configured, or determined to
+/// better than [`MIN_NODE_LOG_SD`], get none.
+pub fn sampling_nodes(nuisance: &Nuisance) -> Vec<(Nuisance, f64)> {
+    let z2 = 2.0 * PROFILE_DROP_95;
+    let mut nodes: Vec<(Nuisance, f64)> = interval_ends(nuisance)
+        .into_iter()
+        .map(|n| (n, 1.0 / (2.0 * z2)))
+        .collect();
+    let (x, _) = values(nuisance);
+    let var = conditional_log_variances(nuisance);
+    for i in [2, 3] {
+        let sd = var[i].max(0.0).sqrt();
+        if sd < MIN_NODE_LOG_SD {
+            continue;
+        }
+        for sign in [-1.0, 1.0] {
+            let (lo, hi) = bounds(i);
+            let value = (x[i] * (sign * 3f64.sqrt() * sd).exp()).clamp(lo, hi);
+            let mut n = nuisance.clone();
+            let p = if i == 2 {
+                &mut n.position_scale
+            } else {
+                &mut n.attitude_scale
+            };
+            p.value = value;
+            nodes.push((n, 1.0 / 6.0));
+        }
+    }
+    nodes
+}
+
+/// Each parameter's variance in the logarithm with the others held: `1 / (S^-1)_ii` over the
+/// estimated block of [`Nuisance::log_covariance`] `S` (its diagonal where that already is
+/// conditional, [`SigmaKind::Conditional`]); 0 for a parameter not estimated.
+fn conditional_log_variances(nuisance: &Nuisance) -> [f64; NP] {
+    let s = &nuisance.log_covariance;
+    let mut out = [0.0; NP];
+    let inner: Vec<usize> = (0..NP).filter(|&i| s[i][i] > 0.0).collect();
+    if nuisance.sigma_kind == SigmaKind::Conditional {
+        inner.iter().for_each(|&i| out[i] = s[i][i]);
+        return out;
+    }
+    let m = DMatrix::from_fn(inner.len(), inner.len(), |a, b| s[inner[a]][inner[b]]);
+    if let Some(inv) = m.try_inverse() {
+        for (a, &i) in inner.iter().enumerate() {
+            if inv[(a, a)] > 0.0 {
+                out[i] = 1.0 / inv[(a, a)];
+            }
+        }
+    }
+    out
+}
+
 /// The model with the slow process that `nuisance` searched and did not use, where the survey
 /// cannot reject it ([`SlowProcess::in_tests`]): its own first process and the slow process
 /// used.
@@ -1243,6 +1311,61 @@ mod tests {
         eprintln!("profile interval covers the drawn 20 s in {covered}/{draws}");
         // 40 draws at 0.95: sd 0.034; 3 sd below.
         assert!(covered * 100 >= 85 * draws, "{covered}/{draws}");
+    }
+
+    /// The nodes of [`sampling_nodes`] on a model whose logarithms are normal (attitude
+    /// correlation time sd 1, attitude scale sd 0.5 correlated 0.6 with it, position scale sd
+    /// 0.3 on its own) and whose profile interval is that normal's (the scale at each end its
+    /// conditional mean there): the weighted nodes and the estimate integrate every quadratic
+    /// in the three logarithms exactly, with positive weights.
+    #[test]
+    fn sampling_nodes_integrate_a_quadratic_over_the_model_exactly() {
+        let set = draw(&Scenario::default(), 5);
+        let refs = set.observed_references();
+        let mut n = estimate(&set, &refs, &Held::default(), [60.0, 30.0]).unwrap();
+        let (su, sv, sw, rho) = (1.0f64, 0.5f64, 0.3f64, 0.6f64);
+        let mut cov = [[0.0; NP]; NP];
+        cov[1][1] = su * su;
+        cov[3][3] = sv * sv;
+        cov[1][3] = rho * su * sv;
+        cov[3][1] = cov[1][3];
+        cov[2][2] = sw * sw;
+        n.log_covariance = cov;
+        n.sigma_kind = SigmaKind::Marginal;
+        let (tau, scale) = (n.attitude_tau_s.value, n.attitude_scale.value);
+        let z = (2.0 * PROFILE_DROP_95).sqrt();
+        let end = |sign: f64| ProfileEnd {
+            tau_s: tau * (sign * z * su).exp(),
+            scale: scale * (sign * z * rho * sv).exp(),
+            at_bound: false,
+        };
+        n.attitude_tau_interval = Some(ProfileInterval {
+            short: end(-1.0),
+            long: end(1.0),
+        });
+        let logs = |m: &Nuisance| {
+            let (x, _) = values(m);
+            let (y, _) = values(&n);
+            [(x[1] / y[1]).ln(), (x[3] / y[3]).ln(), (x[2] / y[2]).ln()]
+        };
+        // f = 1 + u + 2 v - w + u^2 + 3 u v + 2 v^2 + w^2 - v w.
+        let f = |[u, v, w]: [f64; 3]| {
+            1.0 + u + 2.0 * v - w + u * u + 3.0 * u * v + 2.0 * v * v + w * w - v * w
+        };
+        let expected = 1.0 + su * su + 3.0 * cov[1][3] + 2.0 * sv * sv + sw * sw;
+        let nodes = sampling_nodes(&n);
+        assert_eq!(nodes.len(), 6, "two ends and two nodes per scale");
+        let weight: f64 = nodes.iter().map(|(_, w)| w).sum();
+        assert!(
+            nodes.iter().all(|(_, w)| *w > 0.0) && weight < 1.0,
+            "{weight}"
+        );
+        let integral =
+            (1.0 - weight) * f([0.0; 3]) + nodes.iter().map(|(m, w)| w * f(logs(m))).sum::<f64>();
+        assert!(
+            (integral - expected).abs() < 1e-9,
+            "{integral} vs {expected}"
+        );
     }
 
     /// The held-out chi-square under a model learned on the fit references, over 40 draws of

@@ -185,6 +185,19 @@ pub struct OtherModel {
     pub widens_sigma: bool,
 }
 
+/// The fit references' normals under a node of the quadrature over the navigation model's
+/// sampling distribution (`nuisance::sampling_nodes`): each reported sigma is the root of the
+/// weighted mean, over the nodes and the estimate, of the fit's variance there plus its
+/// estimate's squared distance from the estimate's (the law of total variance), so that it
+/// carries what the survey could not tell about the model.
+#[derive(Debug, Clone)]
+pub struct Node {
+    /// `X^T C^-1 X` of the fit references under the node's model.
+    pub normals: Normals,
+    /// The node's weight (the estimate takes what the nodes leave of 1).
+    pub weight: f64,
+}
+
 /// The fit references' normals under one navigation model, and the covariances of the fits
 /// made on them.
 #[derive(Clone, Copy)]
@@ -220,6 +233,7 @@ impl Model<'_> {
 struct Context<'a> {
     fit: Model<'a>,
     others: Vec<Model<'a>>,
+    nodes: Vec<(Model<'a>, f64)>,
     held: &'a Normals,
     groups: &'a [Group],
 }
@@ -247,9 +261,29 @@ impl<'a> Context<'a> {
                     widens_sigma,
                 })
                 .collect(),
+            nodes: Vec::new(),
             held,
             groups,
         }
+    }
+
+    /// `self` with each sigma averaged over `nodes` (normals, covariances, weight: [`Node`]).
+    fn averaged_over(
+        mut self,
+        nodes: impl IntoIterator<Item = (&'a Normals, &'a Covariances, f64)>,
+    ) -> Self {
+        self.nodes = nodes
+            .into_iter()
+            .map(|(normals, covariances, weight)| {
+                let m = Model {
+                    normals,
+                    covariances,
+                    widens_sigma: false,
+                };
+                (m, weight)
+            })
+            .collect();
+        self
     }
 
     fn effects(&self, groups: &[usize]) -> Vec<Effect> {
@@ -275,9 +309,24 @@ impl<'a> Context<'a> {
         self.fit.fit_of(effects).map(|f| self.widened(f))
     }
 
-    /// `fit` with each sigma the largest of its own and those of the same fit under the other
-    /// models that widen it (the covariance scaled to match, its correlations kept).
+    /// `fit` with each sigma averaged over the nodes ([`Node`]; a node where the effects are
+    /// inseparable counts as the estimate), then the largest of that and those of the same
+    /// fit under the other models that widen it (the covariance scaled to match, its
+    /// correlations kept).
     fn widened(&self, mut fit: Fit) -> Fit {
+        if !self.nodes.is_empty() {
+            let centre = 1.0 - self.nodes.iter().map(|(_, w)| w).sum::<f64>();
+            let mut var: Vec<f64> = fit.sigma.iter().map(|s| centre * s * s).collect();
+            for (m, w) in &self.nodes {
+                let at = m.fit_of(&fit.effects);
+                for (i, v) in var.iter_mut().enumerate() {
+                    *v += w * at.as_ref().map_or(fit.sigma[i].powi(2), |o| {
+                        o.sigma[i].powi(2) + (o.estimate[i] - fit.estimate[i]).powi(2)
+                    });
+                }
+            }
+            fit.set_sigma(&var.iter().map(|v| v.sqrt()).collect::<Vec<_>>());
+        }
         for m in self.others.iter().filter(|m| m.widens_sigma) {
             if let Some(other) = m.fit_of(&fit.effects) {
                 fit.widen_sigma(&other.sigma);
@@ -508,14 +557,14 @@ fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
 /// references' normals under the other navigation models the survey cannot reject
 /// (`nuisance::interval_ends`, `nuisance::slow_alternative`): each test on the fit references
 /// takes its largest p-value over them and the estimate's; estimates and the held-out tests
-/// are the estimate's, each sigma the largest of the estimate's and those of the models that
-/// widen it.
+/// are the estimate's, each sigma averaged over `nodes` (the model's sampling distribution,
+/// [`Node`]) and then the largest of that and those of the models that widen it.
 pub fn select(
     set: &ObservationSet,
     split: &Split,
     alpha: f64,
     held_out_chi2_var: f64,
-    others: &[OtherModel],
+    (others, nodes): (&[OtherModel], &[Node]),
 ) -> Result<Selection> {
     let fit_n = Normals::of(set, &split.fit)?;
     let held = Normals::of(set, &split.held_out)?;
@@ -525,6 +574,7 @@ pub fn select(
     let covariances = Covariances::default();
     let other_covariances: Vec<Covariances> =
         others.iter().map(|_| Covariances::default()).collect();
+    let node_covariances: Vec<Covariances> = nodes.iter().map(|_| Covariances::default()).collect();
     let cx = Context::new(
         (&fit_n, &covariances),
         others
@@ -533,6 +583,12 @@ pub fn select(
             .map(|(m, c)| (&m.normals, c, m.widens_sigma)),
         &held,
         &observability.groups,
+    )
+    .averaged_over(
+        nodes
+            .iter()
+            .zip(&node_covariances)
+            .map(|(n, c)| (&n.normals, c, n.weight)),
     );
     let (mut candidates, chosen) = choose(&cx, alpha);
     candidates.sort_by(|a, b| b.held_out_reduction.total_cmp(&a.held_out_reduction));

@@ -364,7 +364,7 @@ mod tests {
                 ..Default::default()
             };
             fill_residuals(&mut set, &truth, seed + 1000);
-            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, &[]).unwrap();
+            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, (&[], &[])).unwrap();
             named += usize::from(names(&sel, &groups, effect));
         }
         let share = named as f64 / seeds as f64;
@@ -423,7 +423,7 @@ mod tests {
             fill_residuals(&mut with, &truth, seed + 1000);
             let (set, n, others) = learned(&with, &sp);
             let var = chi2_variance(&with, &sp.held_out, &n);
-            let sel = select(&set, &sp, DEFAULT_ALPHA, var, &others).unwrap();
+            let sel = select(&set, &sp, DEFAULT_ALPHA, var, (&others, &[])).unwrap();
             named += usize::from(names(&sel, &groups, effect));
         }
         println!("named at detectable: {named}/{seeds}");
