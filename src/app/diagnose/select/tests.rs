@@ -19,6 +19,19 @@ fn size_for(set: &ObservationSet, effect: Effect, rms_m: f64) -> f64 {
     rms_m / ms.sqrt()
 }
 
+/// The selection on `set` split by `seed`, the navigation model known (no other models, no
+/// nodes).
+fn select_on_own_split(set: &ObservationSet, seed: u64) -> Selection {
+    select(
+        set,
+        &split(set, seed).unwrap(),
+        DEFAULT_ALPHA,
+        0.0,
+        (&[], &[]),
+    )
+    .unwrap()
+}
+
 fn mean_std(x: &[f64]) -> (f64, f64) {
     let n = x.len() as f64;
     let mean = x.iter().sum::<f64>() / n;
@@ -58,14 +71,7 @@ fn one_injected_effect_is_named_first_with_honest_sigma() {
             ..Default::default()
         };
         fill_residuals(&mut set, &s, seed + 1000);
-        let sel = select(
-            &set,
-            &split(&set, seed).unwrap(),
-            DEFAULT_ALPHA,
-            0.0,
-            (&[], &[]),
-        )
-        .unwrap();
+        let sel = select_on_own_split(&set, seed);
         let first_group = sel
             .observability
             .groups
@@ -103,14 +109,7 @@ fn an_effect_without_signature_is_unobservable_and_never_named() {
     for o in &mut set.observations {
         o.signature = [0.0; N_EFFECTS];
     }
-    let sel = select(
-        &set,
-        &split(&set, 8).unwrap(),
-        DEFAULT_ALPHA,
-        0.0,
-        (&[], &[]),
-    )
-    .unwrap();
+    let sel = select_on_own_split(&set, 8);
     assert_eq!(sel.observability.unobservable, Effect::ALL.to_vec());
     assert!(sel.observability.groups.is_empty() && sel.candidates.is_empty());
     assert_eq!(sel.verdict, Verdict::Unexplained);
@@ -218,14 +217,7 @@ fn correlated_effects_form_one_group_named_together() {
             },
             seed + 50,
         );
-        let sel = select(
-            &set,
-            &split(&set, seed).unwrap(),
-            DEFAULT_ALPHA,
-            0.0,
-            (&[], &[]),
-        )
-        .unwrap();
+        let sel = select_on_own_split(&set, seed);
         if sel.verdict == Verdict::Effect && sel.effects[..2] == [pair.0, pair.1] {
             named += 1;
             assert_eq!(sel.estimate.len(), sel.effects.len());
@@ -388,6 +380,42 @@ fn held_out_ties_are_broken_by_the_fit_references() {
     assert_eq!(judged(0.5, 0.7, 10.0, 1e-6, 1e-9), a);
 }
 
+/// A set of `scenario` drawn with `seed` in which `effect` moves a return as a roll error of
+/// the navigation does (a constant attitude error is a mounting angle), present at 1 cm rms
+/// (residuals drawn with `seed + 1000`); with the effect's size.
+fn mounting_angle_as_roll(scenario: &Scenario, seed: u64, effect: Effect) -> (ObservationSet, f64) {
+    let mut set = draw(scenario, seed);
+    for o in &mut set.observations {
+        // m per degree from m per radian.
+        o.signature[signature_index(effect)] = o.nav_gradient[3] * std::f64::consts::PI / 180.0;
+    }
+    let truth = size_for(&set, effect, 0.01);
+    let with = Scenario {
+        truth: vec![(effect, truth)],
+        ..scenario.clone()
+    };
+    fill_residuals(&mut set, &with, seed + 1000);
+    (set, truth)
+}
+
+/// The estimate of `effect` fitted alone by the selection under `models`, and its normalised
+/// error against `truth`.
+fn fitted_alone(
+    set: &ObservationSet,
+    sp: &Split,
+    models: (&[OtherModel], &[Node]),
+    (effect, truth): (Effect, f64),
+) -> (f64, f64) {
+    let sel = select(set, sp, DEFAULT_ALPHA, 0.0, models).unwrap();
+    let c = sel
+        .candidates
+        .iter()
+        .find(|c| c.fit.effects == [effect])
+        .expect("fitted alone");
+    let x = c.fit.estimate[0];
+    (x, (x - truth) / c.fit.sigma[0])
+}
+
 /// A slow navigation error that the estimate's model leaves out (drawn: 5 s and 600 / 300 s
 /// processes, half the variance each; the set declares the 5 s process alone at the whole
 /// variance), and a mounting angle whose signature is the navigation's roll gradient: its
@@ -412,19 +440,7 @@ fn a_slow_process_the_model_leaves_out_widens_the_sigmas() {
     let effect = Effect::BoresightX;
     let (mut alone, mut widened) = (Vec::new(), Vec::new());
     for seed in 0..40 {
-        let mut set = draw(&scenario, 700 + seed);
-        // The mounting angle moves a return as a roll error of the navigation does (a
-        // constant attitude error is a boresight).
-        for o in &mut set.observations {
-            // m per degree from m per radian.
-            o.signature[signature_index(effect)] = o.nav_gradient[3] * std::f64::consts::PI / 180.0;
-        }
-        let truth = size_for(&set, effect, 0.01);
-        let with = Scenario {
-            truth: vec![(effect, truth)],
-            ..scenario.clone()
-        };
-        fill_residuals(&mut set, &with, 1700 + seed);
+        let (set, truth) = mounting_angle_as_roll(&scenario, 700 + seed, effect);
         let sp = split(&set, seed).unwrap();
         // The drawn process: the fast part at half the declared variance, the slow beside it
         // (its share relative to the halved variances).
@@ -440,18 +456,7 @@ fn a_slow_process_the_model_leaves_out_widens_the_sigmas() {
             normals: Normals::of(&slow_set, &sp.fit).unwrap(),
             widens_sigma: true,
         };
-        let z = |others: &[OtherModel]| {
-            let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, (others, &[])).unwrap();
-            let c = sel
-                .candidates
-                .iter()
-                .find(|c| c.fit.effects == [effect])
-                .expect("fitted alone");
-            (
-                c.fit.estimate[0],
-                (c.fit.estimate[0] - truth) / c.fit.sigma[0],
-            )
-        };
+        let z = |others: &[OtherModel]| fitted_alone(&set, &sp, (others, &[]), (effect, truth));
         let (a, w) = (z(&[]), z(std::slice::from_ref(&slow)));
         assert_eq!(a.0, w.0, "the estimate is the estimate model's");
         alone.push(a.1);
@@ -486,17 +491,7 @@ fn sigmas_averaged_over_the_models_sampling_distribution_cover_an_unknown_model(
             nav_scale: [1.0, scales[seed as usize % scales.len()]],
             ..Default::default()
         };
-        let mut set = draw(&scenario, 900 + seed);
-        for o in &mut set.observations {
-            // m per degree from m per radian.
-            o.signature[signature_index(effect)] = o.nav_gradient[3] * std::f64::consts::PI / 180.0;
-        }
-        let truth = size_for(&set, effect, 0.01);
-        let with = Scenario {
-            truth: vec![(effect, truth)],
-            ..scenario.clone()
-        };
-        fill_residuals(&mut set, &with, 1900 + seed);
+        let (mut set, truth) = mounting_angle_as_roll(&scenario, 900 + seed, effect);
         let sp = split(&set, seed).unwrap();
         let n = estimate(&set, &sp.fit, &Held::default(), [20.0, 300.0]).unwrap();
         let nodes: Vec<Node> = sampling_nodes(&n)
@@ -507,18 +502,7 @@ fn sigmas_averaged_over_the_models_sampling_distribution_cover_an_unknown_model(
             })
             .collect();
         let applied = apply(set, &n);
-        let z = |nodes: &[Node]| {
-            let sel = select(&applied, &sp, DEFAULT_ALPHA, 0.0, (&[], nodes)).unwrap();
-            let c = sel
-                .candidates
-                .iter()
-                .find(|c| c.fit.effects == [effect])
-                .expect("fitted alone");
-            (
-                c.fit.estimate[0],
-                (c.fit.estimate[0] - truth) / c.fit.sigma[0],
-            )
-        };
+        let z = |nodes: &[Node]| fitted_alone(&applied, &sp, (&[], nodes), (effect, truth));
         let (a, w) = (z(&[]), z(&nodes));
         assert_eq!(a.0, w.0, "the estimate is the learned model's");
         assert!(a.1.is_finite() && w.1.is_finite(), "{a:?} {w:?}");
