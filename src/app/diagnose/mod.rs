@@ -150,7 +150,7 @@ impl Learned {
             .into_iter()
             .chain(nuisance::slow_alternative(&nuisance))
             .collect();
-        let others = alternatives
+        let others: Vec<select::OtherModel> = alternatives
             .iter()
             .zip(widens_sigma)
             .map(|(n, widens_sigma)| {
@@ -160,13 +160,16 @@ impl Learned {
                 })
             })
             .collect::<Result<_>>()?;
+        // A node that is one of the tests' models (the profile interval's ends) reuses its
+        // normals.
         let nodes = nuisance::sampling_nodes(&nuisance)
             .into_iter()
             .map(|(n, weight)| {
-                Ok(select::Node {
-                    normals: nuisance::normals_under(&mut screened, &n, &split.fit)?,
-                    weight,
-                })
+                let normals = match alternatives.iter().position(|a| *a == n) {
+                    Some(k) => others[k].normals.clone(),
+                    None => nuisance::normals_under(&mut screened, &n, &split.fit)?,
+                };
+                Ok(select::Node { normals, weight })
             })
             .collect::<Result<_>>()?;
         let applied = nuisance::apply(screened, &nuisance);

@@ -310,7 +310,7 @@ impl<'a> Context<'a> {
     }
 
     /// `fit` with each sigma averaged over the nodes ([`Node`]; a node where the effects are
-    /// inseparable counts as the estimate), then the largest of that and those of the same
+    /// inseparable, or whose fit is not finite, counts as the estimate), then the largest of that and those of the same
     /// fit under the other models that widen it (the covariance scaled to match, its
     /// correlations kept).
     fn widened(&self, mut fit: Fit) -> Fit {
@@ -318,7 +318,9 @@ impl<'a> Context<'a> {
             let centre = 1.0 - self.nodes.iter().map(|(_, w)| w).sum::<f64>();
             let mut var: Vec<f64> = fit.sigma.iter().map(|s| centre * s * s).collect();
             for (m, w) in &self.nodes {
-                let at = m.fit_of(&fit.effects);
+                let at = m
+                    .fit_of(&fit.effects)
+                    .filter(|o| o.sigma.iter().chain(&o.estimate).all(|v| v.is_finite()));
                 for (i, v) in var.iter_mut().enumerate() {
                     *v += w * at.as_ref().map_or(fit.sigma[i].powi(2), |o| {
                         o.sigma[i].powi(2) + (o.estimate[i] - fit.estimate[i]).powi(2)
