@@ -475,15 +475,25 @@ impl<'a> PoseCursor<'a> {
     }
 }
 
-/// Where the body rates and velocities of a [`Pose`] come from.
+/// Where the body rates, or the velocities, of a [`Pose`] come from.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MotionSource {
-    /// The SBET's own rate and velocity fields.
+    /// The SBET's own rate (velocity) fields.
     SbetFields,
-    /// Central differences of the trajectory's attitude and position ([`derived_motion`]):
-    /// the SBET fields are empty or disagree with the attitude and position they go with.
+    /// Central differences of the trajectory's attitude ([`derived_rates`]) or position
+    /// ([`derived_velocity`]): the SBET fields are empty or disagree with it.
     Trajectory,
+}
+
+/// The fields unless their difference from what the trajectory implies is above a quarter of
+/// that (and `floor`).
+fn motion_source(difference_rms: f64, derived_rms: f64, floor: f64) -> MotionSource {
+    if difference_rms > (0.25 * derived_rms).max(floor) {
+        MotionSource::Trajectory
+    } else {
+        MotionSource::SbetFields
+    }
 }
 
 /// The SBET's body-rate fields against the rates its attitude implies, on up to `samples`
@@ -502,22 +512,61 @@ pub struct RateCheck {
     pub source: MotionSource,
 }
 
+/// The SBET's velocity fields against the velocity of its own positions over
+/// [`VELOCITY_HALF_BASELINE_S`] either side, on up to 2000 record pairs spread over the file:
+/// the rms of the fields, of the derived velocity, and of their difference (m/s).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct VelocityCheck {
+    /// Rms of the SBET velocity fields (m/s).
+    pub fields_rms_mps: f64,
+    /// Rms of the velocity of the positions (m/s).
+    pub derived_rms_mps: f64,
+    /// Rms of fields minus derived (m/s).
+    pub difference_rms_mps: f64,
+    /// Which the diagnosis uses: the fields unless they are empty or off by more than a
+    /// quarter of the derived rms (and 0.1 m/s).
+    pub source: MotionSource,
+}
+
+/// Where the body rates and the velocities that the timing signatures need come from, each
+/// checked on its own: an SBET can leave its rate fields empty and fill its velocities.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct MotionChecks {
+    /// The SBET's body-rate fields against the rates of its own attitude.
+    pub rates: RateCheck,
+    /// The SBET's velocity fields against the velocity of its own positions.
+    pub velocities: VelocityCheck,
+}
+
+/// Half the baseline (s) of the velocity derived from the trajectory's positions
+/// ([`derived_velocity`], [`Trajectory::velocity_check`]): long enough that the
+/// record-to-record steps of the navigation position error (an error drawn per record has no
+/// derivative; over one 5 ms record they are noise of about 0.06 m/s in the simulator, which
+/// in the position latency's signature biased its estimate about 30% low) shrink 20-fold
+/// against one record's, short enough that the chord of a turn is its tangent (0.4% at
+/// 1.5 rad/s).
+pub const VELOCITY_HALF_BASELINE_S: f64 = 0.1;
+
 impl Trajectory {
-    /// Compares the SBET rate fields with the rates of its own attitude (consecutive records,
-    /// up to 2000 pairs spread over the file; their pages released after).
-    pub fn rate_check(&self) -> RateCheck {
+    /// Rms of the fields, of what the trajectory implies and of their difference, over up to
+    /// 2000 record pairs `k` records apart spread over the file; `pair` gives a pair's field
+    /// value and derived value.
+    fn compare_fields(
+        &self,
+        k: usize,
+        pair: impl Fn(&NavSample, &NavSample, f64) -> (Vector3<f64>, Vector3<f64>),
+    ) -> [f64; 3] {
         let sbet = self.sbet();
         let n = sbet.len();
         let step = (n / 2000).max(1);
         let (mut f2, mut d2, mut e2, mut count) = (0.0, 0.0, 0.0, 0.0f64);
         let mut i = 0;
-        while i + 1 < n {
+        while i + k < n {
             let a = NavSample::from_sbet(&sbet.record(i));
-            let b = NavSample::from_sbet(&sbet.record(i + 1));
+            let b = NavSample::from_sbet(&sbet.record(i + k));
             let dt = b.t_s - a.t_s;
             if dt > 0.0 {
-                let derived = (a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / dt;
-                let fields = (a.omega_b_radps + b.omega_b_radps) / 2.0;
+                let (fields, derived) = pair(&a, &b, dt);
                 f2 += fields.norm_squared();
                 d2 += derived.norm_squared();
                 e2 += (fields - derived).norm_squared();
@@ -528,36 +577,70 @@ impl Trajectory {
         // The samples spread over the whole file, and each fault maps its neighbours: without
         // this the check leaves all of the SBET resident.
         self.release();
-        let rms = |x: f64| (x / count.max(1.0)).sqrt();
-        let (fields, derived, diff) = (rms(f2), rms(d2), rms(e2));
-        let floor = 0.1f64.to_radians();
-        let source = if diff > (0.25 * derived).max(floor) {
-            MotionSource::Trajectory
-        } else {
-            MotionSource::SbetFields
-        };
+        [f2, d2, e2].map(|x| (x / count.max(1.0)).sqrt())
+    }
+
+    /// Compares the SBET rate fields with the rates of its own attitude (consecutive records).
+    pub fn rate_check(&self) -> RateCheck {
+        let [fields, derived, diff] = self.compare_fields(1, |a, b, dt| {
+            let derived = (a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / dt;
+            ((a.omega_b_radps + b.omega_b_radps) / 2.0, derived)
+        });
         RateCheck {
             fields_rms_radps: fields,
             derived_rms_radps: derived,
             difference_rms_radps: diff,
-            source,
+            source: motion_source(diff, derived, 0.1f64.to_radians()),
         }
+    }
+
+    /// Compares the SBET velocity fields with the velocity of its own positions (records
+    /// `2 VELOCITY_HALF_BASELINE_S` apart, at least consecutive ones).
+    pub fn velocity_check(&self) -> VelocityCheck {
+        let k = (2.0 * VELOCITY_HALF_BASELINE_S / self.record_spacing_s()).round() as usize;
+        let [fields, derived, diff] = self.compare_fields(k.max(1), |a, b, dt| {
+            let r_n_to_e = crate::geo::ellipsoid::r_n_to_e(a.lat_rad, a.lon_rad);
+            let derived = r_n_to_e.transpose() * (b.r_e_m - a.r_e_m) / dt;
+            ((a.v_n_mps + b.v_n_mps) / 2.0, derived)
+        });
+        VelocityCheck {
+            fields_rms_mps: fields,
+            derived_rms_mps: derived,
+            difference_rms_mps: diff,
+            source: motion_source(diff, derived, 0.1),
+        }
+    }
+
+    /// Both checks: where the diagnosis takes the body rates and the velocities from.
+    pub fn motion_checks(&self) -> MotionChecks {
+        MotionChecks {
+            rates: self.rate_check(),
+            velocities: self.velocity_check(),
+        }
+    }
+
+    /// Mean spacing of the SBET's records (s).
+    pub fn record_spacing_s(&self) -> f64 {
+        let (t0, t1) = self.span_s();
+        (t1 - t0) / self.sbet().len().max(2) as f64
     }
 }
 
-/// Body angular rate (rad/s, at `t + tau`) and NED velocity (m/s, at `t` + position latency)
-/// from the trajectory's own attitude and position, by central differences over `h_s` either
-/// side: for an SBET whose rate or velocity fields are empty or disagree with it.
-pub fn derived_motion(
-    cursor: &mut PoseCursor,
-    t: f64,
-    h_s: f64,
-) -> Result<(Vector3<f64>, Vector3<f64>), NavGap> {
+/// Body angular rate (rad/s, at `t + tau`) from the trajectory's own attitude, by central
+/// differences over `h_s` either side: for an SBET whose rate fields are empty or disagree
+/// with it.
+pub fn derived_rates(cursor: &mut PoseCursor, t: f64, h_s: f64) -> Result<Vector3<f64>, NavGap> {
     let (a, b) = (cursor.at(t - h_s)?, cursor.at(t + h_s)?);
-    let omega_b = (a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / (2.0 * h_s);
+    Ok((a.q_b_to_n.inverse() * b.q_b_to_n).scaled_axis() / (2.0 * h_s))
+}
+
+/// NED velocity (m/s, at `t` + position latency) from the trajectory's own positions, by
+/// central differences over `h_s` either side: for an SBET whose velocity fields are empty or
+/// disagree with it.
+pub fn derived_velocity(cursor: &mut PoseCursor, t: f64, h_s: f64) -> Result<Vector3<f64>, NavGap> {
+    let (a, b) = (cursor.at(t - h_s)?, cursor.at(t + h_s)?);
     let r_n_to_e = crate::geo::ellipsoid::r_n_to_e(a.nav.lat_rad, a.nav.lon_rad);
-    let v_n = r_n_to_e.transpose() * (b.nav.r_e_m - a.nav.r_e_m) / (2.0 * h_s);
-    Ok((omega_b, v_n))
+    Ok(r_n_to_e.transpose() * (b.nav.r_e_m - a.nav.r_e_m) / (2.0 * h_s))
 }
 
 #[cfg(test)]
@@ -631,7 +714,7 @@ mod tests {
         assert_eq!(empty.source, MotionSource::Trajectory, "{empty:?}");
         let mut cursor = PoseCursor::new(&empty_traj, 0.0, 0.0);
         let t = 3.0;
-        let (omega, _) = derived_motion(&mut cursor, t, 1.0 / rate_hz).unwrap();
+        let omega = derived_rates(&mut cursor, t, 1.0 / rate_hz).unwrap();
         let w_roll = std::f64::consts::TAU * f_hz;
         let roll = vib * (w_roll * t).sin();
         let truth = Vector3::new(
@@ -645,6 +728,66 @@ mod tests {
         assert!(
             err < 2e-4,
             "derived {omega:?} vs true {truth:?}: {err:e} rad/s"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// An SBET moving east at 10 m/s whose positions carry a white error drawn per 5 ms
+    /// record (1 cm per axis), as a Gauss-Markov error drawn per record does at that step:
+    /// with the velocity fields filled, the check keeps them; zeroed, it takes the velocity of
+    /// the positions, whose error over the +-0.1 s baseline is sqrt(2) 1 cm / 0.2 s = 0.07 m/s
+    /// per axis (against 2.8 m/s over one record).
+    #[test]
+    fn empty_velocity_fields_are_replaced_by_the_positions_velocity() {
+        use crate::geo::ellipsoid::prime_vertical_radius_m;
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, Normal};
+        let dir = std::env::temp_dir().join(format!("kinescan_vel_{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let (rate_hz, speed, lat, sigma_m) = (200.0, 10.0, 0.8f64, 0.01);
+        let east_radius = prime_vertical_radius_m(lat) * lat.cos();
+        let write = |name: &str, filled: bool| {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+            let jitter = Normal::new(0.0, sigma_m).unwrap();
+            let path = dir.join(name);
+            let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(&path).unwrap();
+            for k in 0..6000 {
+                let t = k as f64 / rate_hz;
+                let (north_m, east_m) = (jitter.sample(&mut rng), jitter.sample(&mut rng));
+                let rec = SbetRecord {
+                    time_s: t,
+                    lat_rad: lat + north_m / crate::geo::ellipsoid::meridian_radius_m(lat),
+                    lon_rad: (speed * t + east_m) / east_radius,
+                    vel_y_mps: if filled { speed } else { 0.0 },
+                    platform_heading_rad: std::f64::consts::FRAC_PI_2,
+                    ..Default::default()
+                };
+                w.push(&rec).unwrap();
+            }
+            w.finish().unwrap();
+            Trajectory::open(&path, None, TrajectoryOptions::default()).unwrap()
+        };
+        let filled = write("filled.sbet", true).velocity_check();
+        assert_eq!(filled.source, MotionSource::SbetFields, "{filled:?}");
+        assert!(filled.difference_rms_mps < 0.15, "{filled:?}");
+        let empty_traj = write("empty.sbet", false);
+        let empty = empty_traj.velocity_check();
+        assert_eq!(empty.source, MotionSource::Trajectory, "{empty:?}");
+        let mut cursor = PoseCursor::new(&empty_traj, 0.0, 0.0);
+        let errors: Vec<f64> = (0..200)
+            .map(|i| {
+                let t = 1.0 + 0.137 * i as f64;
+                let v = derived_velocity(&mut cursor, t, VELOCITY_HALF_BASELINE_S).unwrap();
+                (v - Vector3::new(0.0, speed, 0.0)).norm()
+            })
+            .collect();
+        let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
+        // Expected rms over the two horizontal axes: sqrt(2) * 0.0707 = 0.10 m/s.
+        let expected =
+            (2.0f64).sqrt() * (2.0f64).sqrt() * sigma_m / (2.0 * VELOCITY_HALF_BASELINE_S);
+        assert!(
+            (rms / expected - 1.0).abs() < 0.25,
+            "rms {rms} m/s, expected {expected} m/s"
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }

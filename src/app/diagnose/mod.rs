@@ -544,7 +544,7 @@ fn write_outputs(
             .map(|(e, d)| (e.name().to_string(), *d))
             .collect(),
         nuisance: learned.nuisance,
-        rates: observed.rates,
+        motion: observed.motion,
         foreign: learned.screening,
         counts: observed.counts,
         plots: plot_files,

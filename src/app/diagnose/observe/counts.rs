@@ -59,6 +59,7 @@ pub struct Observed {
     pub set: ObservationSet,
     /// What happened to every return.
     pub counts: ObserveCounts,
-    /// The SBET's rate fields against its attitude, and which the signatures used.
-    pub rates: crate::trajectory::RateCheck,
+    /// The SBET's rate and velocity fields against its attitude and positions, and which the
+    /// signatures used.
+    pub motion: crate::trajectory::MotionChecks,
 }

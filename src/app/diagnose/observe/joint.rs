@@ -7,7 +7,8 @@ use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::{Error, Result};
 
 /// Observes every pipeline of `ps` (in order) on `refs` and joins their observations; the
-/// counts add up over the pipelines, the rate check is the first's (they read one trajectory).
+/// counts add up over the pipelines, the rate and velocity checks are the first's (they read
+/// one trajectory).
 pub fn observe_joint(
     ps: &[LoadedPipeline],
     refs: &References,
@@ -16,14 +17,18 @@ pub fn observe_joint(
     let mut sets = Vec::with_capacity(ps.len());
     let mut summed: Option<(ObserveCounts, _)> = None;
     for p in ps {
-        let Observed { set, counts, rates } = observe(p, refs, opts)?;
+        let Observed {
+            set,
+            counts,
+            motion,
+        } = observe(p, refs, opts)?;
         sets.push(set);
         match &mut summed {
             Some((all, _)) => all.add(&counts),
-            None => summed = Some((counts, rates)),
+            None => summed = Some((counts, motion)),
         }
     }
-    let Some((mut counts, rates)) = summed else {
+    let Some((mut counts, motion)) = summed else {
         return Err(Error::Invalid("diagnosis: no pipeline to observe".into()));
     };
     let set = ObservationSet::join(sets)?;
@@ -32,7 +37,11 @@ pub fn observe_joint(
     counts
         .control_points_without_observations
         .retain(unobserved);
-    Ok(Observed { set, counts, rates })
+    Ok(Observed {
+        set,
+        counts,
+        motion,
+    })
 }
 
 impl ObserveCounts {

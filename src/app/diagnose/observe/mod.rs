@@ -32,7 +32,10 @@ use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline, TimeModel, START_N
 use crate::pipeline::prepare::{open_profiles, PreparedInput};
 use crate::pipeline::report::RejectReason;
 use crate::timing::ScannerClock;
-use crate::trajectory::{derived_motion, MotionSource, PoseCursor, Trajectory};
+use crate::trajectory::{
+    derived_rates, derived_velocity, MotionChecks, MotionSource, PoseCursor, Trajectory,
+    VELOCITY_HALF_BASELINE_S,
+};
 use crate::uncertainty::{Input, PointGeometry, N_INPUTS};
 use crate::{Error, Result};
 use nalgebra::{Matrix3, Vector3};
@@ -123,7 +126,7 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
         control_points_read: refs.control_points.len(),
         ..Default::default()
     };
-    let rates = traj.rate_check();
+    let motion = traj.motion_checks();
     let at = (&mut index, &targets);
     let scan = scan_returns(p, &traj, &files, at, &refs.patches, opts, counts)?;
     let Scan {
@@ -157,7 +160,11 @@ pub fn observe(p: &LoadedPipeline, refs: &References, opts: &DiagnoseConfig) -> 
     counts.control_points_without_observations =
         without(&mut refs.control_points.iter().map(|c| &c.id));
     set.validate()?;
-    Ok(Observed { set, counts, rates })
+    Ok(Observed {
+        set,
+        counts,
+        motion,
+    })
 }
 
 /// Refuses references no return reaches: patches none lies on, control points (when given)
@@ -202,9 +209,12 @@ struct ReturnModel<'a> {
     white: WhiteSigmas,
     /// Correlation times of the INS position and attitude errors (s).
     nav_tau_s: [f64; 2],
-    /// Half-step (s) of the central differences that replace the SBET's rate and velocity
-    /// fields when they are empty or disagree with its attitude; `None`: the fields are used.
-    derived_motion_h_s: Option<f64>,
+    /// Half-step (s) of the central differences that replace the SBET's rate fields when
+    /// they are empty or disagree with its attitude; `None`: the fields are used.
+    derived_rates_h_s: Option<f64>,
+    /// Half-step (s) of the central differences that replace the SBET's velocity fields when
+    /// they are empty or disagree with its positions; `None`: the fields are used.
+    derived_velocity_h_s: Option<f64>,
 }
 
 /// The scanner noise sigmas (`[uncertainty]`) that make the white part of a residual's
@@ -228,7 +238,7 @@ struct Located {
 
 impl<'a> ReturnModel<'a> {
     fn new(p: &LoadedPipeline, traj: &'a Trajectory, file: &ProfileFile) -> Result<Self> {
-        let rates = traj.rate_check();
+        let MotionChecks { rates, velocities } = traj.motion_checks();
         let c = &p.config;
         let alpha_column = file.columns().alpha;
         if c.time.model != TimeModel::Software && !file.columns().time {
@@ -251,10 +261,10 @@ impl<'a> ReturnModel<'a> {
             attitude_latency_s: c.latency.attitude_s,
             position_latency_s: c.latency.position_s,
             range_limits_m: (c.sensor.min_range_m, c.sensor.max_range_m),
-            derived_motion_h_s: (rates.source == MotionSource::Trajectory).then(|| {
-                let (t0, t1) = traj.span_s();
-                (t1 - t0) / traj.sbet().len().max(2) as f64
-            }),
+            derived_rates_h_s: (rates.source == MotionSource::Trajectory)
+                .then(|| traj.record_spacing_s()),
+            derived_velocity_h_s: (velocities.source == MotionSource::Trajectory)
+                .then(|| VELOCITY_HALF_BASELINE_S.max(traj.record_spacing_s())),
             nav_tau_s: c.diagnose.as_ref().map_or(START_NAV_TAU_S, |d| {
                 [
                     d.nav_position_tau_s.unwrap_or(START_NAV_TAU_S[0]),
@@ -332,9 +342,11 @@ impl<'a> ReturnModel<'a> {
         }
         let (t_s, dt_dclock) = self.time_of(r);
         let mut pose = cursor.at(t_s).map_err(RejectReason::from)?;
-        if let Some(h) = self.derived_motion_h_s {
-            let (omega_b, v_n) = derived_motion(cursor, t_s, h).map_err(RejectReason::from)?;
-            (pose.omega_b_radps, pose.nav.v_n_mps) = (omega_b, v_n);
+        if let Some(h) = self.derived_rates_h_s {
+            pose.omega_b_radps = derived_rates(cursor, t_s, h).map_err(RejectReason::from)?;
+        }
+        if let Some(h) = self.derived_velocity_h_s {
+            pose.nav.v_n_mps = derived_velocity(cursor, t_s, h).map_err(RejectReason::from)?;
         }
         let terms = ReturnTerms::of_pose(
             &pose,

@@ -194,9 +194,11 @@ pub struct Diagnosis {
     /// The navigation error model the statistics used and how it was obtained
     /// (docs/diagnosis.md, "The nuisance").
     pub nuisance: crate::app::diagnose::nuisance::Nuisance,
-    /// Extra: the SBET's body-rate fields against the rates of its own attitude, and which the
+    /// Extra (`rates`, `velocities`): the SBET's body-rate fields against the rates of its own
+    /// attitude and its velocity fields against the velocity of its positions, and which the
     /// signatures used (`sbet_fields`, or `trajectory` when the fields are empty or disagree).
-    pub rates: crate::trajectory::RateCheck,
+    #[serde(flatten)]
+    pub motion: crate::trajectory::MotionChecks,
     /// Extra: returns set aside as foreign to their reference, by reference
     /// (docs/diagnosis.md, "Foreign returns").
     pub foreign: screen::Screening,
@@ -551,19 +553,29 @@ No catalogue effect is named; each would \
         );
         self.write_displaced(&mut s);
         self.write_foreign(&mut s);
-        let r = &self.rates;
+        let (r, v) = (&self.motion.rates, &self.motion.velocities);
+        let source = |m: crate::trajectory::MotionSource, of: &str| match m {
+            crate::trajectory::MotionSource::SbetFields => "the SBET's own fields".to_string(),
+            crate::trajectory::MotionSource::Trajectory => {
+                format!(
+                    "derived from the trajectory's {of} (the SBET fields are empty or disagree)"
+                )
+            }
+        };
         let _ = writeln!(
             s,
-            "\nBody rates and velocities for the timing signatures: {} (SBET rate fields rms \
-             {:.3} deg/s, rates of its attitude {:.3} deg/s, difference {:.3} deg/s).",
-            match r.source {
-                crate::trajectory::MotionSource::SbetFields => "the SBET's own fields",
-                crate::trajectory::MotionSource::Trajectory =>
-                    "derived from the trajectory's attitude and position (the SBET fields are empty or disagree)",
-            },
+            "\nBody rates for the timing signatures: {} (SBET rate fields rms {:.3} deg/s, \
+             rates of its attitude {:.3} deg/s, difference {:.3} deg/s). Velocities: {} \
+             (SBET velocity fields rms {:.3} m/s, velocity of its positions {:.3} m/s, \
+             difference {:.3} m/s).",
+            source(r.source, "attitude"),
             r.fields_rms_radps.to_degrees(),
             r.derived_rms_radps.to_degrees(),
-            r.difference_rms_radps.to_degrees()
+            r.difference_rms_radps.to_degrees(),
+            source(v.source, "positions"),
+            v.fields_rms_mps,
+            v.derived_rms_mps,
+            v.difference_rms_mps
         );
         if c.control_points_read > 0 {
             let _ = writeln!(
