@@ -678,21 +678,29 @@ mod tests {
     /// A turn at 0.5 rad/s with roll vibrating at 3 Hz: with the rate fields filled the SBET's
     /// own are used; written as zeros (some exports leave them empty) the rates come from the
     /// attitude, and they match the true rates to the central difference's error.
+    /// `records` written to `path` as an SBET and opened as a trajectory.
+    fn written(path: &Path, records: impl IntoIterator<Item = SbetRecord>) -> Trajectory {
+        let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(path).unwrap();
+        for rec in records {
+            w.push(&rec).unwrap();
+        }
+        w.finish().unwrap();
+        Trajectory::open(path, None, TrajectoryOptions::default()).unwrap()
+    }
+
     #[test]
     fn empty_rate_fields_are_replaced_by_the_attitude_s_rates() {
         let dir = std::env::temp_dir().join(format!("kinescan_rates_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let (rate_hz, yaw_rate, vib, f_hz) = (200.0, 0.5, 0.3f64.to_radians(), 3.0);
         let write = |name: &str, filled: bool| {
-            let path = dir.join(name);
-            let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(&path).unwrap();
-            for k in 0..2000 {
+            let records = (0..2000).map(|k| {
                 let t = k as f64 / rate_hz;
                 let w_roll = std::f64::consts::TAU * f_hz;
                 let roll = vib * (w_roll * t).sin();
                 let roll_rate = vib * w_roll * (w_roll * t).cos();
                 // Body rates of R = Rz(h) Rx(roll): p = roll rate, q = h' sin roll, r = h' cos roll.
-                let rec = SbetRecord {
+                SbetRecord {
                     time_s: t,
                     lat_rad: 0.8,
                     roll_rad: roll,
@@ -701,11 +709,9 @@ mod tests {
                     rate_y_radps: if filled { yaw_rate * roll.sin() } else { 0.0 },
                     rate_z_radps: if filled { yaw_rate * roll.cos() } else { 0.0 },
                     ..Default::default()
-                };
-                w.push(&rec).unwrap();
-            }
-            w.finish().unwrap();
-            Trajectory::open(&path, None, TrajectoryOptions::default()).unwrap()
+                }
+            });
+            written(&dir.join(name), records)
         };
         let filled = write("filled.sbet", true).rate_check();
         assert_eq!(filled.source, MotionSource::SbetFields, "{filled:?}");
@@ -749,23 +755,19 @@ mod tests {
         let write = |name: &str, filled: bool| {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
             let jitter = Normal::new(0.0, sigma_m).unwrap();
-            let path = dir.join(name);
-            let mut w = crate::io::timed::TimedWriter::<SbetRecord>::create(&path).unwrap();
-            for k in 0..6000 {
+            let records = (0..6000).map(|k| {
                 let t = k as f64 / rate_hz;
                 let (north_m, east_m) = (jitter.sample(&mut rng), jitter.sample(&mut rng));
-                let rec = SbetRecord {
+                SbetRecord {
                     time_s: t,
                     lat_rad: lat + north_m / crate::geo::ellipsoid::meridian_radius_m(lat),
                     lon_rad: (speed * t + east_m) / east_radius,
                     vel_y_mps: if filled { speed } else { 0.0 },
                     platform_heading_rad: std::f64::consts::FRAC_PI_2,
                     ..Default::default()
-                };
-                w.push(&rec).unwrap();
-            }
-            w.finish().unwrap();
-            Trajectory::open(&path, None, TrajectoryOptions::default()).unwrap()
+                }
+            });
+            written(&dir.join(name), records)
         };
         let filled = write("filled.sbet", true).velocity_check();
         assert_eq!(filled.source, MotionSource::SbetFields, "{filled:?}");
