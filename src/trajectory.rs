@@ -185,6 +185,8 @@ pub struct Trajectory {
     sbet: SbetFile,
     smrmsg: Option<SmrmsgFile>,
     opts: TrajectoryOptions,
+    /// [`Trajectory::motion_checks`], made on first use.
+    motion: std::sync::OnceLock<MotionChecks>,
 }
 
 impl Trajectory {
@@ -192,7 +194,12 @@ impl Trajectory {
     pub fn open(sbet: &Path, smrmsg: Option<&Path>, opts: TrajectoryOptions) -> Result<Self> {
         let sbet = SbetFile::open(sbet)?;
         let smrmsg = smrmsg.map(SmrmsgFile::open).transpose()?;
-        Ok(Trajectory { sbet, smrmsg, opts })
+        Ok(Trajectory {
+            sbet,
+            smrmsg,
+            opts,
+            motion: std::sync::OnceLock::new(),
+        })
     }
 
     /// The SBET file.
@@ -611,12 +618,13 @@ impl Trajectory {
         }
     }
 
-    /// Both checks: where the diagnosis takes the body rates and the velocities from.
+    /// Both checks: where the diagnosis takes the body rates and the velocities from (made
+    /// once per trajectory: every profile file and every re-observation asks).
     pub fn motion_checks(&self) -> MotionChecks {
-        MotionChecks {
+        *self.motion.get_or_init(|| MotionChecks {
             rates: self.rate_check(),
             velocities: self.velocity_check(),
-        }
+        })
     }
 
     /// Mean spacing of the SBET's records (s).
