@@ -97,8 +97,8 @@ pub fn simulate_text(
 
 /// Diagnoses the survey in `dir` as a user would: the navigation error model learned from
 /// the survey (no `[diagnose]` key set).
-pub fn diagnose_dir(dir: &Path) -> kinescan::Result<Diagnosis> {
-    let p = config::load(&dir.join("pipeline.toml"), &[])?;
+pub fn diagnose_dir(dir: &Path, overrides: &[String]) -> kinescan::Result<Diagnosis> {
+    let p = config::load(&dir.join("pipeline.toml"), overrides)?;
     let req = Request {
         patches: dir.join("survey/patches.csv"),
         control_points: None,
@@ -203,7 +203,7 @@ pub fn run_case(case: &Case, seeds: std::ops::Range<u64>) -> Row {
         .map(|seed| {
             let dir = tempfile::tempdir().unwrap();
             simulate_case(dir.path(), &case.effects_toml, seed);
-            let d = match diagnose_dir(dir.path()) {
+            let d = match diagnose_dir(dir.path(), &[]) {
                 Ok(d) => d,
                 Err(e) => {
                     // Counted as a failure of every rate, with the reason printed.

@@ -24,7 +24,9 @@
 //! `KINESCAN_MATRIX_SIZES` (`2,1,0.4`), `KINESCAN_MATRIX_EFFECTS` (effect names, `none`,
 //! `out: range_cyclic`, `out: range_incidence`), `KINESCAN_MATRIX_SEEDS` (a count, default 5, or a
 //! range of seed ordinals `a-b`), the others each a comma list selecting labels (an unknown
-//! label fails); `KINESCAN_MATRIX_REASON` (set: each diagnosis' `reason` is printed too).
+//! label fails); `KINESCAN_MATRIX_REASON` (set: each diagnosis' `reason` is printed too);
+//! `KINESCAN_MATRIX_SET` (`KEY=VALUE` lines separated by `;`, applied to every diagnosis as
+//! `--set` would be: the experiments with a navigation parameter given rather than learned).
 
 use super::diagnose_acceptance::{
     catalogue_cases, diagnose_dir, excess_is_significant, other_cases, score, simulate_text,
@@ -234,13 +236,24 @@ fn diagnose_case(text: &str, length: &str, seed: u64) -> Option<Diagnosis> {
         println!("    seed {seed}: simulator refused: {e}");
         return None;
     }
-    match diagnose_dir(dir.path()) {
+    match diagnose_dir(dir.path(), &overrides()) {
         Ok(d) => Some(d),
         Err(e) => {
             println!("    seed {seed}: diagnosis error: {e}");
             None
         }
     }
+}
+
+/// `KINESCAN_MATRIX_SET`'s `KEY=VALUE` lines.
+fn overrides() -> Vec<String> {
+    std::env::var("KINESCAN_MATRIX_SET")
+        .unwrap_or_default()
+        .split(';')
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .map(String::from)
+        .collect()
 }
 
 /// Prints one diagnosis of the matrix.
@@ -276,6 +289,13 @@ fn print_outcome(label: &str, size: f64, seed: u64, d: &Diagnosis, expect: &Expe
     }
     if let Expect::Effects(truth) = expect {
         for (e, size) in truth {
+            if let (Some(est), Some(sig)) = (d.estimate.get(e.name()), d.sigma.get(e.name())) {
+                println!(
+                    "    reported: {} truth {size:.4e} est {est:.4e} +- {sig:.2e} (z {:+.2})",
+                    e.name(),
+                    (est - size) / sig
+                );
+            }
             if let Some(c) = d.candidates.iter().find(|c| c.effects == [e.name()]) {
                 println!(
                     "    alone: {} truth {:.4e} est {:.4e} +- {:.2e} (z {:+.2}) fit p {:.2e} held-out p {:.2e} significant {}",
