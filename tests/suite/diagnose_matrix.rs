@@ -392,6 +392,39 @@ fn rate(k: usize, n: usize) -> String {
     }
 }
 
+/// The standard error of a rate over `(seed, ok)` draws, clustered by seed (points): the cases
+/// of one seed share one survey's navigation errors, so they are not independent draws (on
+/// one lap its z's move together across effects), and a binomial error over cases is too
+/// small. `None` below two seeds.
+fn clustered_se(draws: &[(u64, bool)]) -> Option<f64> {
+    let mut by_seed: std::collections::BTreeMap<u64, (f64, f64)> = Default::default();
+    for &(seed, ok) in draws {
+        let e = by_seed.entry(seed).or_default();
+        e.0 += f64::from(u8::from(ok));
+        e.1 += 1.0;
+    }
+    let k = by_seed.len() as f64;
+    let n = draws.len() as f64;
+    if k < 2.0 {
+        return None;
+    }
+    let p = by_seed.values().map(|v| v.0).sum::<f64>() / n;
+    let ss: f64 = by_seed.values().map(|(ok, m)| (ok - p * m).powi(2)).sum();
+    Some(100.0 * (ss * k / (k - 1.0)).sqrt() / n)
+}
+
+#[test]
+fn clustered_se_counts_seeds_not_cases() {
+    // Ten draws per seed: seed 1 all met, seed 2 none. Over 20 independent cases a rate of
+    // 50% has a binomial se of 11 points; as two surveys, sqrt(2 (5^2 + 5^2)) / 20 = 50.
+    let draws: Vec<(u64, bool)> = (0..20).map(|i| (1 + i / 10, i < 10)).collect();
+    assert!((clustered_se(&draws).unwrap() - 50.0).abs() < 1e-9);
+    // Every seed alike: no spread between seeds.
+    let alike: Vec<(u64, bool)> = (0..20).map(|i| (i / 5, i % 5 < 2)).collect();
+    assert!(clustered_se(&alike).unwrap().abs() < 1e-9);
+    assert_eq!(clustered_se(&[(1, true), (1, false)]), None);
+}
+
 /// The acceptance lines of the issue over `outcomes` (one row of the printed table); returns
 /// the failures.
 fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
@@ -412,6 +445,15 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
         .flat_map(|s| s.normalised_errors)
         .collect();
     let big_within = big_errors.iter().filter(|z| z.abs() < 2.0).count();
+    let within_draws: Vec<(u64, bool)> = big
+        .iter()
+        .filter_map(|o| o.score().map(|s| (o.seed, s)))
+        .flat_map(|(seed, s)| {
+            s.normalised_errors
+                .into_iter()
+                .map(move |z| (seed, z.abs() < 2.0))
+        })
+        .collect();
     let big_honest = big.iter().filter(|o| o.after_honest()).count();
     let at_d: Vec<&&Outcome> = outcomes.iter().filter(|o| o.size == 1.0).collect();
     let at_d_named = at_d
@@ -499,6 +541,18 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
             );
         }
     }
+    let named_draws = |of: &[&&Outcome]| -> Vec<(u64, bool)> {
+        of.iter()
+            .map(|o| (o.seed, o.score().is_some_and(|s| s.named_ok)))
+            .collect()
+    };
+    let se = |d: &[(u64, bool)]| clustered_se(d).map_or("-".into(), |v| format!("{v:.1}"));
+    println!(
+        "{label}: seed-clustered se (points): named at 2 D {}, within 2 sigma at 2 D {}, named at D {}",
+        se(&named_draws(&big)),
+        se(&within_draws),
+        se(&named_draws(&at_d)),
+    );
     if !at_d.is_empty() {
         println!(
             "{label}: named at D {} over {} (effect, seed) pairs",
