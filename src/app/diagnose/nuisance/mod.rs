@@ -275,6 +275,31 @@ impl Held {
     }
 }
 
+/// A scale whose log-sd is at least this share of its prior's is left to the prior: the survey
+/// does not determine it (one lap of the city block: the attitude scale's 0.43-0.49 against
+/// 0.5).
+const LEFT_TO_PRIOR: f64 = 0.8;
+
+impl Nuisance {
+    /// The SMRMSG scales this survey does not determine, as (block, log-sd, the prior's
+    /// log-sd): each sigma is averaged over what the prior allows ([`sampling_nodes`]), right
+    /// on average over it and short where the SMRMSG is far out in it (docs/diagnosis.md,
+    /// *The matrix*, "Looked for: within 2 sigma on "smrmsg x0.7"").
+    pub fn scales_left_to_prior(&self) -> Vec<(&'static str, f64, f64)> {
+        [
+            ("position", &self.position_scale, 2),
+            ("attitude", &self.attitude_scale, 3),
+        ]
+        .into_iter()
+        .filter_map(|(block, p, i)| {
+            let log_sd = p.sigma? / p.value;
+            let prior = PRIOR_LOG_SD[i];
+            (log_sd >= LEFT_TO_PRIOR * prior).then_some((block, log_sd, prior))
+        })
+        .collect()
+    }
+}
+
 /// Parameters in search order: position tau, attitude tau, position scale, attitude scale,
 /// position white share, attitude white share, the slow process's position and attitude
 /// shares, its position and attitude correlation times.
@@ -1311,6 +1336,30 @@ mod tests {
         eprintln!("profile interval covers the drawn 20 s in {covered}/{draws}");
         // 40 draws at 0.95: sd 0.034; 3 sd below.
         assert!(covered * 100 >= 85 * draws, "{covered}/{draws}");
+    }
+    /// A scale is reported as left to the prior when its log-sd is near the prior's, and not
+    /// when the survey determines it or it is configured.
+    #[test]
+    fn scales_near_their_prior_are_reported_as_left_to_it() {
+        let set = draw(&Scenario::default(), 5);
+        let refs = set.observed_references();
+        let mut n = estimate(&set, &refs, &Held::default(), [60.0, 30.0]).unwrap();
+        n.position_scale = Parameter {
+            value: 1.2,
+            sigma: Some(1.2 * 0.1),
+            source: "estimated",
+        };
+        n.attitude_scale = Parameter {
+            value: 0.9,
+            sigma: Some(0.9 * 0.45),
+            source: "estimated",
+        };
+        let left = n.scales_left_to_prior();
+        assert_eq!(left.len(), 1, "{left:?}");
+        assert_eq!(left[0].0, "attitude");
+        assert!((left[0].1 - 0.45).abs() < 1e-12 && left[0].2 == PRIOR_LOG_SD[3]);
+        n.attitude_scale.sigma = None;
+        assert!(n.scales_left_to_prior().is_empty());
     }
 
     /// The nodes of [`sampling_nodes`] on a model whose logarithms are normal (attitude

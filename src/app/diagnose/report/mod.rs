@@ -276,6 +276,16 @@ impl Diagnosis {
             p(&n.position_white_share, ""),
             p(&n.attitude_white_share, "")
         );
+        for (block, log_sd, prior) in n.scales_left_to_prior() {
+            let _ = writeln!(
+                s,
+                "This survey does not determine the {block} scale (its log-sd {log_sd:.2} \
+                 against the prior's {prior:.2}): each sigma is averaged over what the prior \
+                 allows, right on average and short where the SMRMSG is far off (on one lap \
+                 stating 0.7 of the true sigmas, 87% of estimates within 2 sigma rather than \
+                 95%). A longer survey determines it; `diagnose.nav_{block}_scale` sets it.\n"
+            );
+        }
         if let Some(slow) = &n.slow {
             let (what, verb) = if slow.used {
                 ("used", "exceeds")
@@ -297,7 +307,8 @@ impl Diagnosis {
             if slow.in_tests {
                 let _ = writeln!(
                     s,
-                    "The survey cannot reject it either: the tests take their largest p-value                      under it too, and each estimate's sigma is the larger of the two models'.
+                    "The survey cannot reject it either: the tests take their largest p-value \
+                     under it too, and each estimate's sigma is the larger of the two models'.
 "
                 );
             }
