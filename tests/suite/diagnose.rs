@@ -424,7 +424,7 @@ fn diagnose_command_uses_control_points_and_refuses_bad_ones() {
     let summary = std::fs::read_to_string(d.join("diag/summary.md")).unwrap();
     assert!(summary.contains("Control points:"), "{summary}");
     // One lap does not determine the attitude scale (log-sd 0.8 of the prior's 0.5 or more),
-    // and the summary says so exactly when diagnosis.json shows it.
+    // and the summary says so.
     let scale = &json["nuisance"]["attitude_scale"];
     let log_sd = scale["sigma"].as_f64().unwrap() / scale["value"].as_f64().unwrap();
     assert!(log_sd >= 0.4, "attitude scale log-sd {log_sd}");

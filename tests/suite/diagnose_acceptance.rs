@@ -96,7 +96,7 @@ pub fn simulate_text(
 }
 
 /// Diagnoses the survey in `dir` as a user would: the navigation error model learned from
-/// the survey (no `[diagnose]` key set).
+/// the survey, but for what `overrides` (`--set` lines) give.
 pub fn diagnose_dir(dir: &Path, overrides: &[String]) -> kinescan::Result<Diagnosis> {
     let p = config::load(&dir.join("pipeline.toml"), overrides)?;
     let req = Request {

@@ -281,9 +281,9 @@ impl Diagnosis {
                 s,
                 "This survey does not determine the {block} scale (its log-sd {log_sd:.2} \
                  against the prior's {prior:.2}): each sigma is averaged over what the prior \
-                 allows, right on average and short where the SMRMSG is far off (on one lap \
-                 stating 0.7 of the true sigmas, 87% of estimates within 2 sigma rather than \
-                 95%). A longer survey determines it; `diagnose.nav_{block}_scale` sets it.\n"
+                 allows, right on average and short where the SMRMSG is far off \
+                 (docs/diagnosis.md, *Reading the report*). A longer survey determines it; \
+                 `diagnose.nav_{block}_scale` sets it.\n"
             );
         }
         if let Some(slow) = &n.slow {
