@@ -136,6 +136,9 @@ pub struct Reobserved {
     /// Held-out chi-square and returns.
     pub chi2: f64,
     pub n: usize,
+    /// The held-out chi-square with the correction's own covariance in the held-out
+    /// covariance: the statistic the verdict tests (`confirm::Confirmation`).
+    pub chi2_given_estimate: f64,
     /// `P(chi2 exceeded)` under the model, its sampling error included
     /// (`metrics::chi2_sf_spread`).
     pub p_value: f64,
@@ -292,10 +295,11 @@ pub fn reason(
     let again = reobserved.map(|r| {
         format!(
             "applied and observed again ({} round{}), the held-out references give chi2/dof \
-             {:.3} (p = {:.2e})",
+             {:.3}, {:.3} with the correction's own uncertainty (p = {:.2e})",
             r.rounds,
             if r.rounds == 1 { "" } else { "s" },
             r.chi2 / r.n as f64,
+            r.chi2_given_estimate / r.n as f64,
             r.p_value
         )
     });

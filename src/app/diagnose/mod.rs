@@ -350,6 +350,7 @@ fn confirm_explanation(
             .copied()
             .zip(chosen.estimate.iter().copied())
             .collect(),
+        covariance: &chosen.cov,
         fit_ids: &fit_ids,
         held_out_ids: &held_out_ids,
     };
@@ -387,6 +388,7 @@ fn confirm_explanation(
     let a = &stats.analysis;
     let reobserved = analysis::Reobserved {
         chi2: c.after.chi2_per_dof * c.after.n as f64,
+        chi2_given_estimate: c.after_chi2_given_estimate,
         n: c.after.n,
         p_value: c.p_value,
         rounds: c.rounds,
@@ -521,6 +523,9 @@ fn write_outputs(
         gap: report::GapBeforeAfter {
             before_chi2_per_dof_sd: chi2_per_dof_sd(&before, learned.held_out_chi2_var, n_held),
             after_chi2_per_dof_sd: chi2_per_dof_sd(&after, after_var.0, after_var.1),
+            after_chi2_per_dof_given_estimate: confirmation.map_or(after.chi2_per_dof, |c| {
+                c.after_chi2_given_estimate / c.after.n.max(1) as f64
+            }),
             before,
             after,
             same_returns,

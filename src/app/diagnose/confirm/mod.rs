@@ -3,7 +3,8 @@
 //! observed again with it (same screening, same navigation model), the same effects are fitted
 //! again there and added until the estimate moves by less than [`SETTLED_SIGMA`] of its sigma
 //! (at most [`MAX_ROUNDS`] rounds), and the verdict is taken on the held-out gap of that last
-//! observation, not on a linear prediction of it.
+//! observation, not on a linear prediction of it, with the correction's own error counted as
+//! noise (the first fit's covariance carried into the held-out covariance).
 
 use super::model::fit::Normals;
 use super::model::metrics::{chi2_sf_spread, gap, Gap};
@@ -11,6 +12,7 @@ use super::model::{Effect, ObservationSet};
 use super::observe::{self, References};
 use crate::pipeline::config::{DiagnoseConfig, LoadedPipeline};
 use crate::Result;
+use nalgebra::DMatrix;
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
@@ -30,6 +32,8 @@ pub type Prepare<'a> = dyn Fn(ObservationSet, &[String]) -> (ObservationSet, f64
 pub struct Proposal<'a> {
     /// The explanation's effects (each group's preferred member) and their estimates.
     pub applied: Vec<(Effect, f64)>,
+    /// The estimates' covariance as reported (names' units, in `applied`'s order).
+    pub covariance: &'a DMatrix<f64>,
     /// Reference ids fitted on and held out.
     pub fit_ids: &'a [String],
     pub held_out_ids: &'a [String],
@@ -49,9 +53,12 @@ pub struct Confirmation {
     pub set: ObservationSet,
     pub held_out: Vec<usize>,
     /// Held-out gap there, the variance the learned navigation model's sampling error adds to
-    /// its `r^T C^-1 r`, and the p-value of that under the model (`chi2_sf_spread`).
+    /// its `r^T C^-1 r`, the chi-square with the correction's covariance in the held-out
+    /// covariance (`Normals::chi2_given_correction_cov`), and the p-value of that under the
+    /// model (`chi2_sf_spread`).
     pub after: Gap,
     pub after_chi2_var: f64,
+    pub after_chi2_given_estimate: f64,
     pub p_value: f64,
 }
 
@@ -95,8 +102,10 @@ pub fn confirm(
         if last_move_sigma < SETTLED_SIGMA || rounds == MAX_ROUNDS {
             let held_out = references_of(&set, proposal.held_out_ids);
             let after = gap(&set, &held_out, None)?;
-            let p_value =
-                chi2_sf_spread(after.chi2_per_dof * after.n as f64, after.n, after_chi2_var);
+            let after_chi2_given_estimate = Normals::of(&set, &held_out)?
+                .chi2_given_correction_cov(&effects, proposal.covariance)
+                .unwrap_or(after.chi2_per_dof * after.n as f64);
+            let p_value = chi2_sf_spread(after_chi2_given_estimate, after.n, after_chi2_var);
             return Ok(Confirmation {
                 applied,
                 set_lines,
@@ -107,6 +116,7 @@ pub fn confirm(
                 held_out,
                 after,
                 after_chi2_var,
+                after_chi2_given_estimate,
                 p_value,
             });
         }

@@ -297,6 +297,23 @@ impl Normals {
         self.chi2_null() - 2.0 * b.dot(&x) + (n * &x).dot(&x)
     }
 
+    /// `r^T (C + S_A Sigma S_A^T)^-1 r` (Woodbury: `r^T C^-1 r - b^T Sigma (I + N Sigma)^-1 b`,
+    /// `N = S_A^T C^-1 S_A`, `b = S_A^T C^-1 r`): the chi-square of residuals that carry a
+    /// correction of `effects` estimated elsewhere with covariance `sigma_cov` (in the names'
+    /// units). A right correction's own error then counts as the noise it is, so the statistic
+    /// is a chi-square on `n` under the model however well these returns see that error.
+    /// `None` when `I + N Sigma` is singular.
+    pub fn chi2_given_correction_cov(
+        &self,
+        effects: &[Effect],
+        sigma_cov: &DMatrix<f64>,
+    ) -> Option<f64> {
+        let (n, b) = self.system(effects);
+        let k = effects.len();
+        let x = (DMatrix::identity(k, k) + &n * sigma_cov).lu().solve(&b)?;
+        Some(self.chi2_null() - (sigma_cov * x).dot(&b))
+    }
+
     /// `theta^T S^T C^-1 S theta`: the squared Mahalanobis size of a correction.
     pub fn quadratic(&self, effects: &[Effect], values: &[f64]) -> f64 {
         let (n, _) = self.system(effects);
@@ -477,5 +494,34 @@ mod tests {
         // 4 sigma: a single draw.
         assert!((f.estimate[0] - truth).abs() < 4.0 * f.sigma[0], "{f:?}");
         assert_eq!(f.dof, set.observations.len() - 1);
+    }
+    #[test]
+    fn chi2_given_a_correction_cov_is_the_dense_quadratic_form() {
+        // C = I, three returns, two effects: r^T (I + S Sigma S^T)^-1 r by a dense inverse.
+        let s = DMatrix::from_row_slice(3, 2, &[1.0, 0.5, -2.0, 1.0, 0.3, 3.0]);
+        let r = DVector::from_column_slice(&[0.7, -1.2, 2.5]);
+        let sigma = DMatrix::from_row_slice(2, 2, &[0.4, 0.1, 0.1, 0.9]);
+        let dense = (DMatrix::identity(3, 3) + &s * &sigma * s.transpose())
+            .try_inverse()
+            .unwrap();
+        let expected = (&dense * &r).dot(&r);
+        let mut m = DMatrix::zeros(N_EFFECTS + 1, N_EFFECTS + 1);
+        let effects = [Effect::ALL[0], Effect::ALL[1]];
+        let (st_s, st_r) = (s.transpose() * &s, s.transpose() * &r);
+        for i in 0..2 {
+            for j in 0..2 {
+                m[(i, j)] = st_s[(i, j)];
+            }
+            m[(i, N_EFFECTS)] = st_r[i];
+            m[(N_EFFECTS, i)] = st_r[i];
+        }
+        m[(N_EFFECTS, N_EFFECTS)] = r.dot(&r);
+        let normals = Normals { n: 3, m };
+        let got = normals.chi2_given_correction_cov(&effects, &sigma).unwrap();
+        assert!((got - expected).abs() < 1e-12, "{got} vs {expected}");
+        // No uncertainty: the plain chi-square.
+        let zero = DMatrix::zeros(2, 2);
+        let plain = normals.chi2_given_correction_cov(&effects, &zero).unwrap();
+        assert!((plain - r.dot(&r)).abs() < 1e-12);
     }
 }

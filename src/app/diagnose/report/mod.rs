@@ -57,6 +57,11 @@ pub struct GapBeforeAfter {
     /// error (docs/diagnosis.md, "The nuisance").
     pub before_chi2_per_dof_sd: f64,
     pub after_chi2_per_dof_sd: f64,
+    /// Re-processed with an estimate: the held-out chi2/dof of the survey observed again with
+    /// the estimate's own covariance added to the held-out covariance, over all its held-out
+    /// returns; the statistic the verdict tests (docs/diagnosis.md, "Selection and verdict",
+    /// 6). Otherwise `after.chi2_per_dof`.
+    pub after_chi2_per_dof_given_estimate: f64,
     /// Both over the same returns: re-processed, the held-out returns both observations
     /// found (matched by pass and record, docs/diagnosis.md "Reading the report"); false only
     /// when they share none, each then over its own.
@@ -659,6 +664,7 @@ mod tests {
             after: g(after),
             before_chi2_per_dof_sd: 0.02,
             after_chi2_per_dof_sd: 0.02,
+            after_chi2_per_dof_given_estimate: after,
             same_returns: true,
         };
         let excess = model_free_line(&m, &gap(1.5, 1.05));
