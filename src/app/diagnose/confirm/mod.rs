@@ -102,6 +102,8 @@ pub fn confirm(
         if last_move_sigma < SETTLED_SIGMA || rounds == MAX_ROUNDS {
             let held_out = references_of(&set, proposal.held_out_ids);
             let after = gap(&set, &held_out, None)?;
+            // `I + N Sigma` is regular for positive semi-definite `N` and `Sigma`; should
+            // rounding make it singular, the raw chi-square (never smaller) is tested.
             let after_chi2_given_estimate = Normals::of(&set, &held_out)?
                 .chi2_given_correction_cov(&effects, proposal.covariance)
                 .unwrap_or(after.chi2_per_dof * after.n as f64);
