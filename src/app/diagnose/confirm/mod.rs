@@ -107,7 +107,10 @@ pub fn confirm(
             let after_chi2_given_estimate = Normals::of(&set, &held_out)?
                 .chi2_given_correction_cov(&effects, proposal.covariance)
                 .unwrap_or(after.chi2_per_dof * after.n as f64);
-            let p_value = chi2_sf_spread(after_chi2_given_estimate, after.n, after_chi2_var);
+            let p_value =
+                chi2_sf_spread(after_chi2_given_estimate, after.n, after_chi2_var, || {
+                    "held-out gap re-observed with the correction applied".to_string()
+                })?;
             return Ok(Confirmation {
                 applied,
                 set_lines,

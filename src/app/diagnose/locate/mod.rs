@@ -11,7 +11,7 @@
 //! judged on the held-out references.
 
 use super::model::fit::{count_on, total_gram, Split};
-use super::model::metrics::{gap_corrected, holm, ln_chi2_sf, marginal_var_m2, Gap};
+use super::model::metrics::{finite_chi2, gap_corrected, holm, ln_chi2_sf, marginal_var_m2, Gap};
 use super::model::{signature_index, Covariate, Effect, Observation, ObservationSet, Theta};
 use crate::{Error, Result};
 use nalgebra::{DMatrix, DVector, SymmetricEigen};
@@ -254,7 +254,9 @@ fn test_covariate(
     } else {
         1.0
     };
-    let chi2 = offsets.chi2 / dispersion;
+    let chi2 = finite_chi2(offsets.chi2 / dispersion, || {
+        format!("offsets along {}", covariate.name())
+    })?;
     let bins_out: Vec<Bin> = offsets
         .per_bin
         .iter()
@@ -395,7 +397,12 @@ pub fn lack_of_fit(
         1.0
     };
     let dof = rank_all - rank_sig;
-    let chi2 = (chi2_all - chi2_sig).max(0.0) / dispersion;
+    // `f64::max` would turn a NaN into 0, "no structure left".
+    let chi2 = finite_chi2(chi2_all - chi2_sig, || {
+        format!("lack of fit along {}", covariate.name())
+    })?
+    .max(0.0)
+        / dispersion;
     Ok(LackOfFit {
         covariate,
         chi2,

@@ -152,15 +152,31 @@ fn ln_gamma_q(a: f64, x: f64) -> f64 {
     }
 }
 
-/// `ln P(chi2_k > x)`.
+/// `ln P(chi2_k > x)`; NaN for a NaN `x` (never a pass: `f64::max` would make it 0 and p 1).
 pub fn ln_chi2_sf(x: f64, k: usize) -> f64 {
+    if x.is_nan() {
+        return f64::NAN;
+    }
     if k == 0 {
         return 0.0;
     }
     ln_gamma_q(0.5 * k as f64, 0.5 * x.max(0.0))
 }
 
-/// `P(chi2_k > x)`.
+/// `chi2` when finite, else an [`Error::Numerical`] naming the test `what`: a goodness-of-fit
+/// test passes on a large p-value, so a non-finite statistic must stop the diagnosis, not pass.
+pub fn finite_chi2(chi2: f64, what: impl FnOnce() -> String) -> Result<f64> {
+    if chi2.is_finite() {
+        Ok(chi2)
+    } else {
+        Err(Error::Numerical {
+            what: what(),
+            problem: format!("the chi-square is {chi2}"),
+        })
+    }
+}
+
+/// `P(chi2_k > x)`; NaN for a NaN `x`.
 pub fn chi2_sf(x: f64, k: usize) -> f64 {
     ln_chi2_sf(x, k).exp()
 }
@@ -168,13 +184,16 @@ pub fn chi2_sf(x: f64, k: usize) -> f64 {
 /// `P(X > x)` for `X = c chi2_nu` with mean `n` and variance `2 n + extra_var` (Satterthwaite's
 /// scaled chi-square): the held-out statistic `r^T C^-1 r` of `n` returns under a navigation
 /// model learned with a sampling error that adds `extra_var` to its variance
-/// (`nuisance::chi2_variance`); [`chi2_sf`] when `extra_var` is 0.
-pub fn chi2_sf_spread(x: f64, n: usize, extra_var: f64) -> f64 {
+/// (`nuisance::chi2_variance`); [`chi2_sf`] when `extra_var` is 0. A non-finite `x` or
+/// `extra_var` is an error naming the test `what` ([`finite_chi2`]).
+pub fn chi2_sf_spread(x: f64, n: usize, extra_var: f64, what: impl Fn() -> String) -> Result<f64> {
+    let x = finite_chi2(x, &what)?;
+    let extra_var = finite_chi2(extra_var, || format!("{} (its added variance)", what()))?;
     if n == 0 {
-        return 1.0;
+        return Ok(1.0);
     }
     let c = 1.0 + extra_var.max(0.0) / (2.0 * n as f64);
-    ln_gamma_q(0.5 * n as f64 / c, 0.5 * (x / c).max(0.0)).exp()
+    Ok(ln_gamma_q(0.5 * n as f64 / c, 0.5 * (x / c).max(0.0)).exp())
 }
 
 /// `P(Z > z)` for a standard normal `Z`.
@@ -194,7 +213,12 @@ pub fn holm(p: &[f64], alpha: f64) -> Vec<bool> {
 
 /// Holm-adjusted p-values: `max_{j <= i} min(1, (m - j) p_(j))` over the sorted `p`; a
 /// hypothesis is rejected at family-wise level `alpha` when its adjusted p-value is <= alpha.
+/// A NaN p-value counts as 1 (never rejected; `f64::max` would give it its predecessor's).
 pub fn holm_adjusted(p: &[f64]) -> Vec<f64> {
+    let p: Vec<f64> = p
+        .iter()
+        .map(|&x| if x.is_nan() { 1.0 } else { x })
+        .collect();
     let mut order: Vec<usize> = (0..p.len()).collect();
     order.sort_by(|&a, &b| p[a].total_cmp(&p[b]));
     let mut adjusted = vec![1.0; p.len()];
@@ -222,6 +246,19 @@ mod tests {
                 && (q[2] - 0.06).abs() < 1e-15
         );
         assert_eq!(holm(&[0.03, 0.04], 0.05), vec![false, false]);
+        // A NaN is never rejected, and does not inherit a smaller p-value's adjustment.
+        assert_eq!(holm_adjusted(&[f64::NAN, 0.001]), vec![1.0, 0.002]);
+        assert_eq!(holm(&[0.001, f64::NAN], 0.05), vec![true, false]);
+    }
+
+    #[test]
+    fn a_non_finite_chi_square_never_passes() {
+        assert!(ln_chi2_sf(f64::NAN, 3).is_nan() && chi2_sf(f64::NAN, 3).is_nan());
+        for (x, extra) in [(f64::NAN, 0.0), (f64::INFINITY, 0.0), (10.0, f64::NAN)] {
+            let err = chi2_sf_spread(x, 10, extra, || "held-out gap".to_string()).unwrap_err();
+            assert!(err.to_string().starts_with("held-out gap"), "{err}");
+        }
+        assert_eq!(chi2_sf_spread(0.0, 0, 0.0, String::new).unwrap(), 1.0);
     }
 
     #[test]
@@ -233,8 +270,9 @@ mod tests {
         assert!((chi2_sf(23.209_251, 10) - 0.01).abs() < 1e-8);
         assert!((chi2_sf(1100.0, 1000) - 0.014_614_408_126).abs() < 1e-9);
         // The spread form: chi2_n itself without extra variance; with 2n more, X = 2 chi2_{n/2}.
-        assert_eq!(chi2_sf_spread(1100.0, 1000, 0.0), chi2_sf(1100.0, 1000));
-        let doubled = chi2_sf_spread(2.0 * 550.0, 1000, 2000.0);
+        let spread = |x, n, v| chi2_sf_spread(x, n, v, String::new).unwrap();
+        assert_eq!(spread(1100.0, 1000, 0.0), chi2_sf(1100.0, 1000));
+        let doubled = spread(2.0 * 550.0, 1000, 2000.0);
         assert!((doubled - chi2_sf(550.0, 500)).abs() < 1e-12, "{doubled}");
         // Far tail: ln P(chi2_1 > 2000) = ln erfc(sqrt(1000)) ~ -1000 - ln(sqrt(1000 pi)).
         let expected = -1000.0 - (1000.0 * std::f64::consts::PI).sqrt().ln();

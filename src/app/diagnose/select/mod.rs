@@ -101,15 +101,16 @@ pub struct NullTest {
 }
 
 impl NullTest {
-    fn new(chi2: f64, n: usize, alpha: f64, extra_var: f64) -> Self {
-        let p_value = chi2_sf_spread(chi2, n, extra_var);
-        NullTest {
+    /// An error when `chi2` or `extra_var` is not finite (`metrics::chi2_sf_spread`).
+    fn new(chi2: f64, n: usize, alpha: f64, extra_var: f64, what: &str) -> Result<Self> {
+        let p_value = chi2_sf_spread(chi2, n, extra_var, || what.to_string())?;
+        Ok(NullTest {
             chi2,
             n,
             extra_var,
             p_value,
             rejected: p_value < alpha,
-        }
+        })
     }
 }
 
@@ -338,13 +339,22 @@ impl<'a> Context<'a> {
     }
 
     /// The likelihood-ratio p-value of `larger` against the nested `smaller` on the fit
-    /// references: the largest of `p` (the estimated model's) and the other models' (1 where
-    /// they cannot separate the effects or give no finite statistic).
-    fn p_over_models(&self, p: f64, larger: &[Effect], smaller: &[Effect]) -> f64 {
+    /// references, `drop` being the estimated model's fall of chi2 from one to the other: the
+    /// largest of the estimated model's and the other models' (1 where a model cannot separate
+    /// the effects or gives no finite drop).
+    fn p_over_models(&self, drop: f64, larger: &[Effect], smaller: &[Effect]) -> f64 {
         let dof = larger.len() - smaller.len();
-        self.others.iter().fold(p, |worst, m| {
+        // A non-finite drop is no evidence for the larger explanation.
+        let p_of = |drop: f64| {
+            if drop.is_finite() {
+                chi2_sf(drop, dof)
+            } else {
+                1.0
+            }
+        };
+        self.others.iter().fold(p_of(drop), |worst, m| {
             let q = match (m.chi2_of(smaller), m.chi2_of(larger)) {
-                (Some(s), Some(l)) if (s - l).is_finite() => chi2_sf(s - l, dof),
+                (Some(s), Some(l)) => p_of(s - l),
                 _ => 1.0,
             };
             worst.max(q)
@@ -441,7 +451,7 @@ fn first_step(cx: &Context) -> Vec<Candidate> {
     let singles: Vec<Option<Candidate>> = (0..cx.groups.len())
         .map(|g| {
             let c = cx.candidate(vec![g], None, 1.0)?;
-            let p = cx.p_over_models(chi2_sf(null_chi2 - c.fit.chi2, 1), &c.fit.effects, &[]);
+            let p = cx.p_over_models(null_chi2 - c.fit.chi2, &c.fit.effects, &[]);
             Some(Candidate { p_value: p, ..c })
         })
         .collect();
@@ -456,9 +466,9 @@ fn first_step(cx: &Context) -> Vec<Candidate> {
             };
             let pair = &c.fit.effects;
             let p = [
-                cx.p_over_models(chi2_sf(null_chi2 - c.fit.chi2, 2), pair, &[]),
-                cx.p_over_models(chi2_sf(sa.fit.chi2 - c.fit.chi2, 1), pair, &sa.fit.effects),
-                cx.p_over_models(chi2_sf(sb.fit.chi2 - c.fit.chi2, 1), pair, &sb.fit.effects),
+                cx.p_over_models(null_chi2 - c.fit.chi2, pair, &[]),
+                cx.p_over_models(sa.fit.chi2 - c.fit.chi2, pair, &sa.fit.effects),
+                cx.p_over_models(sb.fit.chi2 - c.fit.chi2, pair, &sb.fit.effects),
             ]
             .into_iter()
             .fold(0.0, f64::max);
@@ -483,7 +493,7 @@ fn extend(
                 groups.push(g);
                 let c = cx.candidate(groups, Some(&current.fit), 1.0)?;
                 let p = cx.p_over_models(
-                    chi2_sf(current.fit.chi2 - c.fit.chi2, 1),
+                    current.fit.chi2 - c.fit.chi2,
                     &c.fit.effects,
                     &current.fit.effects,
                 );
@@ -537,9 +547,7 @@ fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
             let mut both = swap.clone();
             both.push(rep(g));
             let p = match cx.fit.chi2_of(&both) {
-                Some(chi2_both) => {
-                    cx.p_over_models(chi2_sf(chi2_swap - chi2_both, 1), &both, &swap)
-                }
+                Some(chi2_both) => cx.p_over_models(chi2_swap - chi2_both, &both, &swap),
                 None => 1.0,
             };
             if p > alpha {
@@ -572,7 +580,13 @@ pub fn select(
     let held = Normals::of(set, &split.held_out)?;
     let observability = observability_of(&fit_n, &Effect::ALL);
     let null_chi2 = held.chi2_null();
-    let null = NullTest::new(null_chi2, held.n, alpha, held_out_chi2_var);
+    let null = NullTest::new(
+        null_chi2,
+        held.n,
+        alpha,
+        held_out_chi2_var,
+        "held-out gap without any effect",
+    )?;
     let covariances = Covariances::default();
     let other_covariances: Vec<Covariances> =
         others.iter().map(|_| Covariances::default()).collect();
@@ -602,7 +616,11 @@ pub fn select(
     };
     let remaining = chosen
         .as_ref()
-        .map(|c| NullTest::new(c.chi2_held_out, held.n, alpha, held_out_chi2_var));
+        .map(|c| {
+            let what = "held-out gap the chosen explanation leaves";
+            NullTest::new(c.chi2_held_out, held.n, alpha, held_out_chi2_var, what)
+        })
+        .transpose()?;
     // A rejected gap is closed only when what the explanation leaves passes the same test: a
     // right explanation leaves its estimation error alone (about k of chi2).
     let closes = remaining.is_some_and(|r| !r.rejected);

@@ -59,6 +59,18 @@ fn no_effect_gives_none_and_chi2_per_dof_near_one() {
 }
 
 #[test]
+fn a_non_finite_null_statistic_is_an_error_not_none() {
+    let set = draw(&Scenario::default(), 1);
+    let sp = split(&set, 1).unwrap();
+    let err = select(&set, &sp, DEFAULT_ALPHA, f64::NAN, (&[], &[])).unwrap_err();
+    let text = err.to_string();
+    assert!(
+        text.starts_with("held-out gap without any effect"),
+        "{text}"
+    );
+}
+
+#[test]
 fn one_injected_effect_is_named_first_with_honest_sigma() {
     let seeds = 90;
     let (mut first, mut normalised) = (0, Vec::new());
