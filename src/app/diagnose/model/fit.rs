@@ -233,7 +233,7 @@ pub struct Fit {
     pub sigma: Vec<f64>,
     /// Covariance of the estimates.
     pub cov: DMatrix<f64>,
-    /// Minimum `r^T C^-1 r` after the fit.
+    /// Minimum `r^T C^-1 r` after the fit (NaN when the normals' residual column is).
     pub chi2: f64,
     /// Degrees of freedom: observations minus effects.
     pub dof: usize,
@@ -369,7 +369,10 @@ impl Normals {
         let c = Self::columns(effects);
         let b = DVector::from_fn(c.len(), |i, _| self.m[(c[i], N_EFFECTS)]);
         let estimate = &cov * &b;
-        let chi2 = (self.chi2_null() - b.dot(&estimate)).max(0.0);
+        // Rounding can take it below 0; a NaN stays NaN (no evidence for the fit in
+        // `select`), where `f64::max` would make it a perfect fit.
+        let chi2 = self.chi2_null() - b.dot(&estimate);
+        let chi2 = if chi2 < 0.0 { 0.0 } else { chi2 };
         Fit {
             effects: effects.to_vec(),
             sigma: cov.diagonal().iter().map(|v| v.sqrt()).collect(),
@@ -494,6 +497,14 @@ mod tests {
         // 4 sigma: a single draw.
         assert!((f.estimate[0] - truth).abs() < 4.0 * f.sigma[0], "{f:?}");
         assert_eq!(f.dof, set.observations.len() - 1);
+    }
+    #[test]
+    fn a_nan_residual_column_gives_a_nan_fit_chi2_not_a_perfect_fit() {
+        let set = draw(&Scenario::default(), 5);
+        let mut normals = Normals::of(&set, &set.observed_references()).unwrap();
+        normals.m[(0, N_EFFECTS)] = f64::NAN;
+        let f = normals.fit(&[Effect::ALL[0]]).unwrap();
+        assert!(f.chi2.is_nan(), "{}", f.chi2);
     }
     #[test]
     fn chi2_given_a_correction_cov_is_the_dense_quadratic_form() {
