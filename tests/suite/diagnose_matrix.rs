@@ -183,8 +183,13 @@ struct Outcome {
     /// Size in units of `detectable` (catalogue effects), else 0.
     size: f64,
     seed: u64,
+    /// `None`: the diagnosis failed, or (`no_size`) was not run.
     d: Option<Diagnosis>,
     expect: Expect,
+    /// A catalogue case at 2 D or more whose survey reports no `detectable` size (it would
+    /// name the effect at no size): not run, and counted as not named (nor estimated, nor
+    /// closed) at 2 D, since the survey cannot name it at 5 sigmas either.
+    no_size: bool,
 }
 
 impl Outcome {
@@ -347,7 +352,21 @@ fn run_cell(
             match &case.expect {
                 Expect::Effects(e) if e.len() == 1 => {
                     let Some(Some(det)) = calibration.detectable.get(e[0].0.name()) else {
-                        println!("  {} seed {seed}: no detectable size", case.label);
+                        println!(
+                            "  {} seed {seed}: no detectable size (its cases at 2 D or more count as not named)",
+                            case.label
+                        );
+                        out.extend(sizes.iter().filter(|&&k| k >= 2.0).map(|&k| Outcome {
+                            model: model.label,
+                            foreign,
+                            length,
+                            case: case.label.clone(),
+                            size: k,
+                            seed,
+                            d: None,
+                            expect: case.expect.clone(),
+                            no_size: true,
+                        }));
                         continue;
                     };
                     runs.extend(
@@ -377,6 +396,7 @@ fn run_cell(
                 seed,
                 d,
                 expect: c.expect.clone(),
+                no_size: false,
             });
         }
     }
@@ -495,7 +515,11 @@ fn judge(label: &str, outcomes: &[&Outcome]) -> Vec<String> {
         .iter()
         .filter(|o| o.score().is_some_and(|s| s.located_ok))
         .count();
-    let errors = count(&|o| o.d.is_none());
+    let errors = count(&|o| o.d.is_none() && !o.no_size);
+    let no_size = count(&|o| o.no_size);
+    if no_size > 0 {
+        println!("{label}: {no_size} case(s) at 2 D without a detectable size, counted as misses");
+    }
     println!(
         "| {label} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {errors} |",
         rate(none_ok, none.len()),

@@ -80,7 +80,7 @@ struct Statistics {
     verdict: report::Verdict,
     /// Named effects: (effect, estimate, sigma), the re-processed ones first.
     named: Vec<(model::Effect, f64, f64)>,
-    /// The effects re-processed with (a group's preferred member, or a combination).
+    /// The effects re-processed with (one member of a group, or a combination).
     applied: Vec<(model::Effect, f64)>,
     reason: String,
     before: report::GapMetrics,
@@ -403,7 +403,7 @@ fn confirm_explanation(
     );
     stats.verdict = report_verdict(verdict);
     if holds {
-        // The preferred members carry the settled correction; the others keep their
+        // The corrected members carry the settled correction; the others keep their
         // first-round estimates (each is what it would be were it alone the cause).
         stats.named = proposed
             .effects
@@ -732,6 +732,10 @@ fn group_reports(
             hint: g.separating_data.join("; "),
             rivals: names(&g.rivals),
             max_abs_correlation: g.max_abs_correlation,
+            first_is_preferred: g.members.iter().all(|&m| {
+                select::observability::preference_rank(g.members[0])
+                    <= select::observability::preference_rank(m)
+            }),
         })
         .collect()
 }

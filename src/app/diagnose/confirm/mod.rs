@@ -30,7 +30,7 @@ pub type Prepare<'a> = dyn Fn(ObservationSet, &[String]) -> (ObservationSet, f64
 
 /// What to apply and where to judge it.
 pub struct Proposal<'a> {
-    /// The explanation's effects (each group's preferred member) and their estimates.
+    /// The explanation's effects (one member of each group) and their estimates.
     pub applied: Vec<(Effect, f64)>,
     /// The estimates' covariance as reported (names' units, in `applied`'s order).
     pub covariance: &'a DMatrix<f64>,

@@ -91,7 +91,8 @@ pub struct ObservabilityReport {
 /// Effects the data cannot separate (|correlation| > 0.9).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct GroupReport {
-    /// Members, the preferred first.
+    /// Members, the preferred first: the one the explanation takes and the re-run corrects
+    /// (the catalogue's most common cause, unless the held-out references support another).
     pub members: Vec<String>,
     /// The data that would separate them.
     pub hint: String,
@@ -102,9 +103,13 @@ pub struct GroupReport {
     pub rivals: Vec<String>,
     /// The largest |correlation| between two members' estimates fitted together.
     pub max_abs_correlation: f64,
+    /// Whether the first member is the catalogue's most common cause of the group (else the
+    /// held-out references chose it).
+    #[serde(skip)]
+    pub first_is_preferred: bool,
 }
 
-/// One tested candidate (an effect, a group's preferred member, or a combination).
+/// One tested candidate (an effect, one member of a group, or a combination).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct CandidateReport {
     /// Effect names.
@@ -161,7 +166,8 @@ pub struct ModelFreeReport {
 pub struct Diagnosis {
     /// docs/conventions.md §8.
     pub verdict: Verdict,
-    /// The named effect(s); an inseparable group lists all its members, the preferred first.
+    /// The named effect(s); an inseparable group lists all its members, the preferred first
+    /// (the one the re-run corrects: docs/conventions.md §8).
     pub effects: Vec<String>,
     /// Estimate per name in `effects` (unit of the name).
     pub estimate: BTreeMap<String, f64>,
@@ -448,9 +454,14 @@ No catalogue effect is named; each would \
                     .join(", ")
             };
             let (why, corrected) = if g.rivals.is_empty() {
+                let corrected = if g.first_is_preferred {
+                    "the more common cause"
+                } else {
+                    "the one the held-out references fit better"
+                };
                 (
                     "|correlation| > 0.9 on these references".to_string(),
-                    "the more common cause",
+                    corrected,
                 )
             } else {
                 (

@@ -56,9 +56,11 @@ impl Verdict {
 pub struct Candidate {
     /// Indices into [`Observability::groups`].
     pub groups: Vec<usize>,
-    /// GLS fit of the groups' preferred members on the fit references.
+    /// GLS fit on the fit references of one member per group: the preferred, unless the
+    /// held-out references support another better (`Context::candidate`).
     pub fit: Fit,
-    /// Likelihood-ratio p-value on the fit references: against no effect for a single group;
+    /// Likelihood-ratio p-value on the fit references (of the groups' preferred members,
+    /// which these references cannot tell from the others): against no effect for a single group;
     /// for a pair, the largest of that and each member's test given the other (both needed);
     /// for a greedy addition, the added group given the rest. Each test's p-value is the
     /// largest over the navigation models the survey cannot reject (the estimate's and the
@@ -119,11 +121,12 @@ impl NullTest {
 pub struct Selection {
     /// The verdict.
     pub verdict: Verdict,
-    /// Named effects (verdict `effect`): every member of each chosen group, the preferred first.
+    /// Named effects (verdict `effect`): every member of each chosen group, the one the
+    /// explanation takes (and the re-run corrects) first.
     pub effects: Vec<Effect>,
     /// Estimate of each named effect (fit references), in the unit of its name: a
-    /// non-preferred member's estimate is from the same explanation with it in place of the
-    /// preferred member.
+    /// group's other member's estimate is from the same explanation with it in place of the
+    /// first.
     pub estimate: Vec<f64>,
     /// 1-sigma of each estimate.
     pub sigma: Vec<f64>,
@@ -132,7 +135,7 @@ pub struct Selection {
     /// held-out gap, and the diagnosis judges it again on the survey observed with the
     /// correction applied (`app::diagnose::confirm`).
     pub proposed: Option<Named>,
-    /// The explanation to re-process with (the chosen groups' preferred members, fitted on the
+    /// The explanation to re-process with (one member of each chosen group, fitted on the
     /// fit references); also set when the verdict is `unexplained` but a partial explanation
     /// was significant, so a report can say how little it closes.
     pub chosen: Option<Fit>,
@@ -287,8 +290,53 @@ impl<'a> Context<'a> {
         self
     }
 
+    /// The preferred members of `groups`: what the fit references' tests take them as.
     fn effects(&self, groups: &[usize]) -> Vec<Effect> {
         groups.iter().map(|&g| self.groups[g].members[0]).collect()
+    }
+
+    /// `chi2` of the fit of the preferred members of `groups` on the fit references (the
+    /// likelihood-ratio tests'); `None` when inseparable.
+    fn preferred_chi2(&self, groups: &[usize]) -> Option<f64> {
+        self.fit.chi2_of(&self.effects(groups))
+    }
+
+    /// Every way of taking `groups` as one member each, the preferred members first; a group
+    /// with a member in `fixed` (the explanation extended) keeps it.
+    fn representations(&self, groups: &[usize], fixed: &[Effect]) -> Vec<Vec<Effect>> {
+        let mut out = vec![Vec::new()];
+        for &g in groups {
+            let members = &self.groups[g].members;
+            let choices = match members.iter().find(|m| fixed.contains(m)) {
+                Some(&m) => vec![m],
+                None => members.clone(),
+            };
+            out = out
+                .iter()
+                .flat_map(|r| {
+                    choices.iter().map(move |&m| {
+                        let mut r = r.clone();
+                        r.push(m);
+                        r
+                    })
+                })
+                .collect();
+        }
+        out
+    }
+
+    /// The sd from the held-out noise of the difference of two corrections' held-out
+    /// reductions, `chi2(b) - chi2(a)`: `2 sqrt(d^T C^-1 d)`, `d` the difference of the
+    /// corrections.
+    fn reduction_sd(&self, a: &Fit, b: &Fit) -> f64 {
+        let effects: Vec<Effect> = a.effects.iter().chain(&b.effects).copied().collect();
+        let delta: Vec<f64> = a
+            .estimate
+            .iter()
+            .copied()
+            .chain(b.estimate.iter().map(|x| -x))
+            .collect();
+        2.0 * self.held.quadratic(&effects, &delta).max(0.0).sqrt()
     }
 
     /// The largest |correlation| on the fit references between a member of group `a` and one
@@ -362,9 +410,35 @@ impl<'a> Context<'a> {
     }
 
     /// Fits `groups` on the fit references and judges them on the held-out ones against
-    /// `base` (the explanation they extend: `None` = no effect). `None` when inseparable.
+    /// `base` (the explanation they extend: `None` = no effect). Each group is taken as its
+    /// preferred member unless the held-out references support another member better by more
+    /// than [`TIE_SD`] sd of the difference ([`Self::reduction_sd`]): the fit references cannot
+    /// tell a group's members apart, the held-out ones may (other ranges, other headings).
+    /// `None` when the preferred members are inseparable.
     fn candidate(&self, groups: Vec<usize>, base: Option<&Fit>, p_value: f64) -> Option<Candidate> {
-        let fit = self.fit_of(&self.effects(&groups))?;
+        let fixed = base.map_or(&[][..], |b| &b.effects[..]);
+        let mut judged = self
+            .representations(&groups, fixed)
+            .into_iter()
+            .map(|effects| self.judged(&effects, base));
+        let mut best = judged.next().flatten()?;
+        for other in judged.flatten() {
+            let gain = other.held_out_reduction - best.held_out_reduction;
+            if gain > TIE_SD * self.reduction_sd(&best.fit, &other.fit) {
+                best = other;
+            }
+        }
+        Some(Candidate {
+            groups,
+            p_value,
+            ..best
+        })
+    }
+
+    /// `effects` fitted on the fit references and judged on the held-out ones against `base`
+    /// (groups and p-value left for [`Self::candidate`]); `None` when inseparable.
+    fn judged(&self, effects: &[Effect], base: Option<&Fit>) -> Option<Candidate> {
+        let fit = self.fit_of(effects)?;
         let chi2_held_out = self.held.chi2_at(&fit.effects, &fit.estimate);
         // The change of the correction relative to the base, in the fit's effect order.
         let delta: Vec<f64> = fit
@@ -386,9 +460,9 @@ impl<'a> Context<'a> {
         let z = (held_out_reduction + quad) / (2.0 * quad.sqrt());
         let held_out_p_value = if quad > 0.0 { normal_sf(z) } else { 1.0 };
         Some(Candidate {
-            groups,
+            groups: Vec::new(),
             fit,
-            p_value,
+            p_value: 1.0,
             p_holm: 1.0,
             significant: false,
             chi2_held_out,
@@ -419,24 +493,7 @@ fn judge(cx: &Context, candidates: &mut [Candidate], alpha: f64) -> Option<usize
     })?;
     let b = &candidates[best];
     let tied = |c: &Candidate| {
-        // Held-out reductions differ by chi2(theta_c) - chi2(theta_b): 2 (d^T C^-1 r) - ...
-        // with d the difference of the two corrections, sd 2 sqrt(d^T C^-1 d).
-        let effects: Vec<Effect> = b
-            .fit
-            .effects
-            .iter()
-            .chain(&c.fit.effects)
-            .copied()
-            .collect();
-        let delta: Vec<f64> = b
-            .fit
-            .estimate
-            .iter()
-            .copied()
-            .chain(c.fit.estimate.iter().map(|x| -x))
-            .collect();
-        let sd = 2.0 * cx.held.quadratic(&effects, &delta).max(0.0).sqrt();
-        b.held_out_reduction - c.held_out_reduction <= TIE_SD * sd
+        b.held_out_reduction - c.held_out_reduction <= TIE_SD * cx.reduction_sd(&b.fit, &c.fit)
     };
     let penalised = |c: &Candidate| c.fit.chi2 + 2.0 * c.fit.effects.len() as f64;
     eligible
@@ -445,37 +502,48 @@ fn judge(cx: &Context, candidates: &mut [Candidate], alpha: f64) -> Option<usize
         .min_by(|&a, &b| penalised(&candidates[a]).total_cmp(&penalised(&candidates[b])))
 }
 
-/// Each group alone and every pair (the pair's p-value requires both members).
+/// Each group alone and every pair (the pair's p-value requires both members). The
+/// likelihood ratios are those of the groups' preferred members ([`Context::candidate`] may
+/// take another member for the estimate and the held-out judgement).
 fn first_step(cx: &Context) -> Vec<Candidate> {
     let null_chi2 = cx.fit.normals.chi2_null();
-    let singles: Vec<Option<Candidate>> = (0..cx.groups.len())
+    let singles: Vec<Option<(Candidate, f64)>> = (0..cx.groups.len())
         .map(|g| {
             let c = cx.candidate(vec![g], None, 1.0)?;
-            let p = cx.p_over_models(null_chi2 - c.fit.chi2, &c.fit.effects, &[]);
-            Some(Candidate { p_value: p, ..c })
+            let chi2 = cx.preferred_chi2(&[g])?;
+            let p = cx.p_over_models(null_chi2 - chi2, &cx.effects(&[g]), &[]);
+            Some((Candidate { p_value: p, ..c }, chi2))
         })
         .collect();
     let mut out: Vec<Candidate> = Vec::new();
     for a in 0..cx.groups.len() {
         for b in a + 1..cx.groups.len() {
-            let (Some(sa), Some(sb)) = (&singles[a], &singles[b]) else {
+            let (Some((_, chi2_a)), Some((_, chi2_b))) = (&singles[a], &singles[b]) else {
                 continue;
             };
-            let Some(c) = cx.candidate(vec![a, b], None, 1.0) else {
+            let (Some(c), Some(chi2)) = (
+                cx.candidate(vec![a, b], None, 1.0),
+                cx.preferred_chi2(&[a, b]),
+            ) else {
                 continue;
             };
-            let pair = &c.fit.effects;
+            let pair = cx.effects(&[a, b]);
             let p = [
-                cx.p_over_models(null_chi2 - c.fit.chi2, pair, &[]),
-                cx.p_over_models(sa.fit.chi2 - c.fit.chi2, pair, &sa.fit.effects),
-                cx.p_over_models(sb.fit.chi2 - c.fit.chi2, pair, &sb.fit.effects),
+                cx.p_over_models(null_chi2 - chi2, &pair, &[]),
+                cx.p_over_models(chi2_a - chi2, &pair, &cx.effects(&[a])),
+                cx.p_over_models(chi2_b - chi2, &pair, &cx.effects(&[b])),
             ]
             .into_iter()
             .fold(0.0, f64::max);
             out.push(Candidate { p_value: p, ..c });
         }
     }
-    singles.into_iter().flatten().chain(out).collect()
+    singles
+        .into_iter()
+        .flatten()
+        .map(|(c, _)| c)
+        .chain(out)
+        .collect()
 }
 
 /// Greedy forward additions to `current`, one group at a time.
@@ -491,12 +559,9 @@ fn extend(
             .filter_map(|g| {
                 let mut groups = current.groups.clone();
                 groups.push(g);
-                let c = cx.candidate(groups, Some(&current.fit), 1.0)?;
-                let p = cx.p_over_models(
-                    current.fit.chi2 - c.fit.chi2,
-                    &c.fit.effects,
-                    &current.fit.effects,
-                );
+                let c = cx.candidate(groups.clone(), Some(&current.fit), 1.0)?;
+                let drop = cx.preferred_chi2(&current.groups)? - cx.preferred_chi2(&groups)?;
+                let p = cx.p_over_models(drop, &cx.effects(&groups), &cx.effects(&current.groups));
                 Some(Candidate { p_value: p, ..c })
             })
             .collect();
@@ -530,11 +595,14 @@ fn choose(cx: &Context, alpha: f64) -> (Vec<Candidate>, Option<Candidate>) {
 /// small effect seen through a correlated one is named with it, not instead of it.
 fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
     let rep = |g: usize| cx.groups[g].members[0];
-    let effects = cx.effects(&chosen.groups);
+    let effects = chosen.fit.effects.clone();
     let mut taken: Vec<usize> = chosen.groups.clone();
     let mut out = Vec::with_capacity(chosen.groups.len());
     for (slot, &g) in chosen.groups.iter().enumerate() {
+        // The member the explanation takes (the one corrected) first.
         let mut named = cx.groups[g].clone();
+        named.members.retain(|&m| m != effects[slot]);
+        named.members.insert(0, effects[slot]);
         for h in 0..cx.groups.len() {
             if taken.contains(&h) {
                 continue;
@@ -545,7 +613,7 @@ fn named_groups(cx: &Context, chosen: &Candidate, alpha: f64) -> Vec<Group> {
                 continue;
             };
             let mut both = swap.clone();
-            both.push(rep(g));
+            both.push(effects[slot]);
             let p = match cx.fit.chi2_of(&both) {
                 Some(chi2_both) => cx.p_over_models(chi2_swap - chi2_both, &both, &swap),
                 None => 1.0,
@@ -661,7 +729,7 @@ pub fn select(
 /// Every member of an explanation's groups with its estimate and sigma.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Named {
-    /// The members, each group's preferred member first.
+    /// The members, each group's corrected member first.
     pub effects: Vec<Effect>,
     /// Estimates (fit references), in each name's unit.
     pub estimate: Vec<f64>,
@@ -670,13 +738,13 @@ pub struct Named {
 }
 
 /// Every member of the chosen groups and their rivals (`groups`, [`named_groups`]) with its
-/// estimate and sigma (another than the preferred member fitted in its place, or alone when
+/// estimate and sigma (another than the first member fitted in its place, or alone when
 /// that is singular).
 fn named(cx: &Context, chosen: &Candidate, groups: &[Group]) -> Result<Named> {
     let (mut effects, mut estimate, mut sigma) = (Vec::new(), Vec::new(), Vec::new());
     for (slot, group) in groups.iter().enumerate() {
         for (m, &member) in group.members.iter().enumerate() {
-            // A member that cannot stand in for the preferred one beside the other groups
+            // A member that cannot stand in for the first one beside the other groups
             // (singular together) is estimated alone.
             let (fit, at) = if m == 0 {
                 (chosen.fit.clone(), slot)

@@ -36,7 +36,8 @@ pub const PREFERENCE: [Effect; N_EFFECTS] = [
     Effect::Cone,
 ];
 
-fn preference_rank(e: Effect) -> usize {
+/// Where `e` stands in [`PREFERENCE`] (0: the most common cause).
+pub(crate) fn preference_rank(e: Effect) -> usize {
     PREFERENCE
         .iter()
         .position(|&p| p == e)

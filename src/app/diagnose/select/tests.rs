@@ -200,7 +200,7 @@ fn correlated_effects_form_one_group_named_together() {
         "{:?}",
         obs.groups
     );
-    let mut named = 0;
+    let (mut named, mut preferred_first) = (0, 0);
     for seed in 0..10 {
         let mut set = draw(
             &Scenario {
@@ -219,6 +219,76 @@ fn correlated_effects_form_one_group_named_together() {
         assert_eq!(g.members, vec![pair.0, pair.1], "preferred first");
         assert!(g.max_abs_correlation > 0.9 && !g.separating_data.is_empty());
         assert!(obs.vif[obs.effects.iter().position(|&e| e == pair.1).unwrap()] > 5.0);
+        // Either member the cause: the group is named, its members first in either order
+        // (the held-out references may support the twin better than the preferred member);
+        // the preferred member the cause, it is the one corrected.
+        for (cause, other) in [(pair.1, pair.0), (pair.0, pair.1)] {
+            let truth = size_for(&set, cause, 0.02);
+            fill_residuals(
+                &mut set,
+                &Scenario {
+                    twin: Some(pair),
+                    truth: vec![(cause, truth)],
+                    ..Default::default()
+                },
+                seed + 50,
+            );
+            let sel = select_on_own_split(&set, seed);
+            let first_two = sel.effects.get(..2);
+            if sel.verdict == Verdict::Effect
+                && (first_two == Some(&[cause, other][..])
+                    || first_two == Some(&[other, cause][..]))
+            {
+                named += 1;
+                preferred_first += usize::from(cause == pair.0 && sel.effects[0] == pair.0);
+                assert_eq!(sel.estimate.len(), sel.effects.len());
+            }
+        }
+    }
+    assert!(named >= 18, "group named in {named}/20");
+    assert!(
+        preferred_first >= 9,
+        "the preferred cause corrected in {preferred_first}/10"
+    );
+}
+
+/// A group's other member, which the fit references cannot tell from the preferred one and
+/// the held-out references can, is named first, estimated and corrected: the held-out
+/// references judge each member's fit ([`Context::candidate`]). Judged as the preferred
+/// member alone, whose fitted correction the held-out references reject, such an effect was
+/// never named at any size (a range scale beside the range zero on a 15-minute survey,
+/// docs/diagnosis.md, *Selection and verdict*, 3). Where the held-out references cannot
+/// tell the members apart either, the preferred member stays first
+/// (`correlated_effects_form_one_group_named_together`).
+#[test]
+fn a_group_member_the_held_out_references_separate_is_named_first() {
+    let pair = (Effect::BoresightX, Effect::EncoderOffset);
+    let seeds = 20;
+    let (mut first, mut z) = (0, Vec::new());
+    for seed in 0..seeds {
+        let mut set = draw(
+            &Scenario {
+                twin: Some(pair),
+                ..Default::default()
+            },
+            seed,
+        );
+        let sp = split(&set, seed).unwrap();
+        // On the held-out references the twin changes sign with the scan side.
+        for o in set.observations.iter_mut() {
+            if sp.held_out.contains(&o.reference) && o.covariates.beta_deg < 0.0 {
+                o.signature[signature_index(pair.1)] *= -1.0;
+            }
+        }
+        let fit_n = Normals::of(&set, &sp.fit).unwrap();
+        let grouped = observability_of(&fit_n, &Effect::ALL)
+            .groups
+            .iter()
+            .any(|g| g.members == vec![pair.0, pair.1]);
+        assert!(
+            grouped,
+            "seed {seed}: the fit references do not group the pair"
+        );
         let truth = size_for(&set, pair.1, 0.02);
         fill_residuals(
             &mut set,
@@ -229,13 +299,18 @@ fn correlated_effects_form_one_group_named_together() {
             },
             seed + 50,
         );
-        let sel = select_on_own_split(&set, seed);
-        if sel.verdict == Verdict::Effect && sel.effects[..2] == [pair.0, pair.1] {
-            named += 1;
-            assert_eq!(sel.estimate.len(), sel.effects.len());
+        let sel = select(&set, &sp, DEFAULT_ALPHA, 0.0, (&[], &[])).unwrap();
+        if sel.verdict == Verdict::Effect && sel.effects.first() == Some(&pair.1) {
+            first += 1;
+            z.push((sel.estimate[0] - truth) / sel.sigma[0]);
+            assert_eq!(sel.chosen.as_ref().unwrap().effects[0], pair.1);
         }
     }
-    assert!(named >= 9, "group named in {named}/10");
+    let (mean, sd) = mean_std(&z);
+    println!("named first in {first}/{seeds}; normalised error mean {mean:.2}, sd {sd:.2}");
+    assert!(first >= 18, "named first in {first}/{seeds}");
+    // 18 or more draws of N(0, 1): the mean within 3 / sqrt(18) = 0.71, the sd within 0.5-1.6.
+    assert!(mean.abs() < 0.71 && (0.5..1.6).contains(&sd), "{mean} {sd}");
 }
 
 /// A small effect seen through a correlated one (|correlation| about 0.8 on these
