@@ -554,14 +554,18 @@ fn extend(
     tried: &mut Vec<Candidate>,
 ) -> Candidate {
     while current.groups.len() < MAX_GROUPS {
+        let Some(chi2_current) = cx.preferred_chi2(&current.groups) else {
+            break;
+        };
+        let current_effects = cx.effects(&current.groups);
         let mut step: Vec<Candidate> = (0..cx.groups.len())
             .filter(|g| !current.groups.contains(g))
             .filter_map(|g| {
                 let mut groups = current.groups.clone();
                 groups.push(g);
                 let c = cx.candidate(groups.clone(), Some(&current.fit), 1.0)?;
-                let drop = cx.preferred_chi2(&current.groups)? - cx.preferred_chi2(&groups)?;
-                let p = cx.p_over_models(drop, &cx.effects(&groups), &cx.effects(&current.groups));
+                let drop = chi2_current - cx.preferred_chi2(&groups)?;
+                let p = cx.p_over_models(drop, &cx.effects(&groups), &current_effects);
                 Some(Candidate { p_value: p, ..c })
             })
             .collect();
